@@ -1,0 +1,13 @@
+//! lamina: layered BRDF models for rendering research.
+//!
+//! Layout: `optics` (Fresnel, microfacet distributions, diffuse lobes) → `bsdf` (single rough interfaces) →
+//! `stack` (the layer stack description) → `models` (one module per model) → `python` (the NumPy bindings).
+//! Conventions are stated once in docs/conventions.md.
+
+pub mod bsdf;
+pub mod models;
+pub mod optics;
+pub mod stack;
+
+#[cfg(feature = "python")]
+mod python;

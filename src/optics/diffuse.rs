@@ -1,0 +1,47 @@
+//! Diffuse lobes: Lambert and the qualitative Oren–Nayar model.
+
+use glam::DVec3;
+use std::f64::consts::FRAC_1_PI;
+
+/// Lambertian BRDF ρ/π for directions above the horizon.
+pub fn lambert(albedo: f64, wi: DVec3, wo: DVec3) -> f64 {
+    if wi.z <= 0.0 || wo.z <= 0.0 {
+        return 0.0;
+    }
+    albedo * FRAC_1_PI
+}
+
+/// Qualitative Oren–Nayar 1994 BRDF (eq. 30, the form pbrt and Elek 2010 use):
+/// ρ/π [A + B max(0, cos(φi − φo)) sin α tan β], α = max(θi, θo), β = min(θi, θo),
+/// A = 1 − 0.5σ²/(σ² + 0.33), B = 0.45σ²/(σ² + 0.09); σ is the facet-slope standard deviation in radians.
+pub fn oren_nayar(albedo: f64, sigma: f64, wi: DVec3, wo: DVec3) -> f64 {
+    if wi.z <= 0.0 || wo.z <= 0.0 {
+        return 0.0;
+    }
+    let s2 = sigma * sigma;
+    let a = 1.0 - 0.5 * s2 / (s2 + 0.33);
+    let b = 0.45 * s2 / (s2 + 0.09);
+    let sin_i = (1.0 - wi.z * wi.z).max(0.0).sqrt();
+    let sin_o = (1.0 - wo.z * wo.z).max(0.0).sqrt();
+    let cos_dphi = if sin_i > 1e-12 && sin_o > 1e-12 {
+        ((wi.x * wo.x + wi.y * wo.y) / (sin_i * sin_o)).clamp(-1.0, 1.0)
+    } else {
+        0.0
+    };
+    // sin α tan β with α the larger zenith angle, β the smaller one.
+    let sin_alpha_tan_beta = if wi.z > wo.z { sin_o * sin_i / wi.z } else { sin_i * sin_o / wo.z };
+    albedo * FRAC_1_PI * (a + b * cos_dphi.max(0.0) * sin_alpha_tan_beta)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn oren_nayar_reduces_to_lambert_and_is_reciprocal() {
+        let wi = DVec3::new(0.5, 0.2, 0.8426149773176359);
+        let wo = DVec3::new(0.3, -0.6, 0.7416198487095663);
+        assert!((oren_nayar(0.7, 0.0, wi, wo) - lambert(0.7, wi, wo)).abs() < 1e-15);
+        assert!((oren_nayar(0.7, 0.5, wi, wo) - oren_nayar(0.7, 0.5, wo, wi)).abs() < 1e-15);
+    }
+}

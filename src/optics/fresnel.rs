@@ -1,0 +1,160 @@
+//! Fresnel reflectance: exact dielectric and conductor, Schlick, Lazányi–Szirmay-Kalos, and the
+//! hemispherical (diffuse) Fresnel reflectance.
+
+/// Exact unpolarized dielectric Fresnel reflectance (Born & Wolf §1.5). `cos_i` is the cosine of the incident
+/// direction with the normal on the side of the incidence; a negative `cos_i` means incidence from inside, where
+/// the relative IOR becomes 1/`eta`. `eta` = η_inside / η_outside. Returns 1 under total internal reflection.
+pub fn dielectric(cos_i: f64, eta: f64) -> f64 {
+    let (cos_i, eta) = if cos_i < 0.0 { (-cos_i, 1.0 / eta) } else { (cos_i, eta) };
+    let cos_i = cos_i.min(1.0);
+    let sin2_t = (1.0 - cos_i * cos_i) / (eta * eta);
+    if sin2_t >= 1.0 {
+        return 1.0;
+    }
+    let cos_t = (1.0 - sin2_t).sqrt();
+    let r_s = (cos_i - eta * cos_t) / (cos_i + eta * cos_t);
+    let r_p = (eta * cos_i - cos_t) / (eta * cos_i + cos_t);
+    0.5 * (r_s * r_s + r_p * r_p)
+}
+
+/// Exact unpolarized conductor Fresnel reflectance for the relative complex IOR `eta` + i`k`
+/// (closed form of the Fresnel equations, e.g. Lagarde 2013 / Born & Wolf §14.2). `cos_i` in [0, 1].
+pub fn conductor(cos_i: f64, eta: f64, k: f64) -> f64 {
+    let cos_i = cos_i.clamp(0.0, 1.0);
+    let cos2 = cos_i * cos_i;
+    let sin2 = 1.0 - cos2;
+    let t0 = eta * eta - k * k - sin2;
+    let a2b2 = (t0 * t0 + 4.0 * eta * eta * k * k).sqrt();
+    let a = (0.5 * (a2b2 + t0)).max(0.0).sqrt();
+    let r_s = (a2b2 - 2.0 * a * cos_i + cos2) / (a2b2 + 2.0 * a * cos_i + cos2);
+    let num = cos2 * a2b2 - 2.0 * a * cos_i * sin2 + sin2 * sin2;
+    let den = cos2 * a2b2 + 2.0 * a * cos_i * sin2 + sin2 * sin2;
+    let r_p = if den > 0.0 { r_s * num / den } else { r_s };
+    0.5 * (r_s + r_p)
+}
+
+/// Reflectance at normal incidence of a relative complex IOR `eta` + i`k`.
+pub fn f0(eta: f64, k: f64) -> f64 {
+    ((eta - 1.0).powi(2) + k * k) / ((eta + 1.0).powi(2) + k * k)
+}
+
+/// Schlick 1994 approximation F0 + (1 − F0)(1 − cos θ)^5.
+pub fn schlick(cos_i: f64, f0: f64) -> f64 {
+    f0 + (1.0 - f0) * (1.0 - cos_i.clamp(0.0, 1.0)).powi(5)
+}
+
+/// Lazányi & Szirmay-Kalos 2005, "Fresnel term approximations for metals" (the rescaled Schlick form used by
+/// Elek 2010): [(η−1)² + 4η(1−cos θ)^5 + κ²] / [(η+1)² + κ²].
+pub fn lazanyi(cos_i: f64, eta: f64, k: f64) -> f64 {
+    let m = (1.0 - cos_i.clamp(0.0, 1.0)).powi(5);
+    ((eta - 1.0).powi(2) + 4.0 * eta * m + k * k) / ((eta + 1.0).powi(2) + k * k)
+}
+
+/// Nodes and weights of n-point Gauss–Legendre quadrature on [-1, 1] (Newton iteration on P_n).
+pub fn gauss_legendre(n: usize) -> Vec<(f64, f64)> {
+    (1..=n)
+        .map(|i| {
+            let mut x = (std::f64::consts::PI * (i as f64 - 0.25) / (n as f64 + 0.5)).cos();
+            loop {
+                let (mut p0, mut p1) = (1.0, x);
+                for k in 2..=n {
+                    let p2 = ((2 * k - 1) as f64 * x * p1 - (k - 1) as f64 * p0) / k as f64;
+                    (p0, p1) = (p1, p2);
+                }
+                let dp = n as f64 * (x * p1 - p0) / (x * x - 1.0);
+                let dx = p1 / dp;
+                x -= dx;
+                if dx.abs() < 1e-15 {
+                    return (x, 2.0 / ((1.0 - x * x) * dp * dp));
+                }
+            }
+        })
+        .collect()
+}
+
+/// Integral of `f` over [a, b] by composite 24-point Gauss–Legendre quadrature over `pieces` sub-intervals.
+pub fn integrate(f: impl Fn(f64) -> f64, a: f64, b: f64, pieces: usize) -> f64 {
+    let nodes = gauss_legendre(24);
+    let h = (b - a) / pieces as f64;
+    (0..pieces)
+        .map(|p| {
+            let mid = a + (p as f64 + 0.5) * h;
+            nodes.iter().map(|&(x, w)| w * f(mid + 0.5 * h * x)).sum::<f64>() * 0.5 * h
+        })
+        .sum()
+}
+
+/// Hemispherical (cosine-weighted) average of the dielectric Fresnel reflectance for light incident from the
+/// side with relative IOR `eta`: F̄ = 2 ∫₀¹ F(μ, eta) μ dμ. For eta > 1 the integrand is smooth (Gauss–Legendre,
+/// ~1e-12); for eta < 1 energy balance across the interface (Snell: η_i² μ dμ = η_t² μ_t dμ_t) gives exactly
+/// F̄(eta) = 1 − eta² (1 − F̄(1/eta)), which avoids the √-kink at the critical angle.
+pub fn diffuse_reflectance(eta: f64) -> f64 {
+    if eta < 1.0 {
+        return 1.0 - eta * eta * (1.0 - diffuse_reflectance(1.0 / eta));
+    }
+    integrate(|mu| 2.0 * mu * dielectric(mu, eta), 0.0, 1.0, 8)
+}
+
+/// Which Fresnel term a model uses for conductors.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum FresnelForm {
+    Exact,
+    Schlick,
+    Lazanyi,
+}
+
+impl FresnelForm {
+    /// Conductor reflectance of η + iκ in the chosen form.
+    pub fn conductor(self, cos_i: f64, eta: f64, k: f64) -> f64 {
+        match self {
+            FresnelForm::Exact => conductor(cos_i, eta, k),
+            FresnelForm::Schlick => schlick(cos_i, f0(eta, k)),
+            FresnelForm::Lazanyi => lazanyi(cos_i, eta, k),
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn dielectric_limits() {
+        assert!((dielectric(1.0, 1.5) - 0.04).abs() < 1e-12);
+        assert!((dielectric(0.0, 1.5) - 1.0).abs() < 1e-12);
+        assert_eq!(dielectric(0.3, 1.0 / 1.5), 1.0, "beyond the critical angle");
+        assert_eq!(dielectric(-0.3, 1.5), 1.0, "negative cosine means incidence from inside");
+        assert!((dielectric(0.7, 1.5) - dielectric(-0.7, 1.0 / 1.5)).abs() < 1e-15);
+    }
+
+    #[test]
+    fn conductor_reduces_to_dielectric_without_absorption() {
+        for i in 0..=20 {
+            let mu = i as f64 / 20.0;
+            assert!((conductor(mu, 1.7, 0.0) - dielectric(mu, 1.7)).abs() < 1e-12, "mu = {mu}");
+        }
+        assert!((conductor(1.0, 0.2, 3.0) - f0(0.2, 3.0)).abs() < 1e-12);
+        assert!((conductor(0.0, 0.2, 3.0) - 1.0).abs() < 1e-12);
+    }
+
+    #[test]
+    fn approximations_are_exact_at_normal_incidence() {
+        assert!((lazanyi(1.0, 0.35, 2.7) - f0(0.35, 2.7)).abs() < 1e-15);
+        assert!((schlick(0.0, 0.04) - 1.0).abs() < 1e-15);
+    }
+
+    #[test]
+    fn quadrature_is_exact_for_polynomials() {
+        assert!((integrate(|x| x.powi(7) - 3.0 * x * x, 0.0, 2.0, 1) - (32.0 - 8.0)).abs() < 1e-12);
+    }
+
+    #[test]
+    fn diffuse_reflectance_known_values() {
+        // Brute-force midpoint sums (2e6 points) on both sides of a glass interface.
+        for eta in [1.5, 1.0 / 1.5, 1.1, 0.4] {
+            let n = 2_000_000;
+            let brute: f64 = (0..n).map(|i| (i as f64 + 0.5) / n as f64).map(|mu| 2.0 * mu * dielectric(mu, eta)).sum::<f64>() / n as f64;
+            assert!((diffuse_reflectance(eta) - brute).abs() < 1e-8, "eta {eta}: {} vs {brute}", diffuse_reflectance(eta));
+        }
+    }
+}

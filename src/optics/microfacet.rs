@@ -1,0 +1,304 @@
+//! Anisotropic microfacet distributions (GGX / Trowbridge–Reitz and Beckmann) with Smith masking, the V-cavity
+//! masking of Torrance–Sparrow, and visible-normal sampling. Directions are in the local frame (z = normal); each
+//! distribution carries the rotation `angle` of its tangent frame, along whose x axis `alpha_x` applies.
+
+use super::to_tangent_frame;
+use glam::DVec3;
+use std::f64::consts::PI;
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Distribution {
+    Ggx,
+    Beckmann,
+}
+
+#[derive(Clone, Copy, Debug)]
+pub struct Microfacet {
+    pub dist: Distribution,
+    pub alpha_x: f64,
+    pub alpha_y: f64,
+    cos_phi: f64,
+    sin_phi: f64,
+}
+
+impl Microfacet {
+    pub fn new(dist: Distribution, alpha_x: f64, alpha_y: f64, angle: f64) -> Self {
+        Self { dist, alpha_x, alpha_y, cos_phi: angle.cos(), sin_phi: angle.sin() }
+    }
+
+    /// True when both roughnesses are zero: the interface is a perfectly smooth (Dirac) one.
+    pub fn is_smooth(&self) -> bool {
+        self.alpha_x == 0.0 && self.alpha_y == 0.0
+    }
+
+    fn local(&self, w: DVec3) -> DVec3 {
+        to_tangent_frame(w, self.cos_phi, self.sin_phi)
+    }
+
+    fn from_local(&self, w: DVec3) -> DVec3 {
+        to_tangent_frame(w, self.cos_phi, -self.sin_phi)
+    }
+
+    /// Normal distribution D(m) (Walter et al. 2007 eq. 33 for GGX, eq. 25 for Beckmann; anisotropic form of
+    /// Heitz 2014 eq. 85/86). Zero for m below the horizon.
+    pub fn d(&self, m: DVec3) -> f64 {
+        let m = self.local(m);
+        if m.z <= 0.0 {
+            return 0.0;
+        }
+        let (x, y) = (m.x / self.alpha_x, m.y / self.alpha_y);
+        let z2 = m.z * m.z;
+        match self.dist {
+            Distribution::Ggx => {
+                let s = x * x + y * y + z2;
+                1.0 / (PI * self.alpha_x * self.alpha_y * s * s)
+            }
+            Distribution::Beckmann => {
+                (-(x * x + y * y) / z2).exp() / (PI * self.alpha_x * self.alpha_y * z2 * z2)
+            }
+        }
+    }
+
+    /// Smith Λ(w) of the distribution (Heitz 2014 eq. 72 for GGX, eq. 69 for Beckmann), using the projected
+    /// roughness α(φ) along the azimuth of w.
+    pub fn lambda(&self, w: DVec3) -> f64 {
+        let w = self.local(w);
+        let alpha_tan2 = ((w.x * self.alpha_x).powi(2) + (w.y * self.alpha_y).powi(2)) / (w.z * w.z);
+        if alpha_tan2 == 0.0 || !alpha_tan2.is_finite() {
+            return if alpha_tan2 == 0.0 { 0.0 } else { f64::INFINITY };
+        }
+        match self.dist {
+            Distribution::Ggx => 0.5 * ((1.0 + alpha_tan2).sqrt() - 1.0),
+            Distribution::Beckmann => {
+                let a = 1.0 / alpha_tan2.sqrt();
+                0.5 * (libm::erf(a) - 1.0) + (-a * a).exp() / (2.0 * a * PI.sqrt())
+            }
+        }
+    }
+
+    /// Smith masking G1(w, m) = χ⁺((w·m)/(w·n)) / (1 + Λ(w)) (Heitz 2014 eq. 43).
+    pub fn g1(&self, w: DVec3, m: DVec3) -> f64 {
+        if w.dot(m) * w.z <= 0.0 {
+            return 0.0;
+        }
+        1.0 / (1.0 + self.lambda(w))
+    }
+
+    /// Separable Smith masking-shadowing G1(wi) G1(wo) (Heitz 2014 eq. 98; what Mitsuba 3 uses).
+    pub fn g2_separable(&self, wi: DVec3, wo: DVec3, m: DVec3) -> f64 {
+        self.g1(wi, m) * self.g1(wo, m)
+    }
+
+    /// Height-correlated Smith masking-shadowing 1 / (1 + Λ(wi) + Λ(wo)) (Heitz 2014 eq. 99; pbrt-v4).
+    pub fn g2_height_correlated(&self, wi: DVec3, wo: DVec3, m: DVec3) -> f64 {
+        if wi.dot(m) * wi.z <= 0.0 || wo.dot(m) * wo.z <= 0.0 {
+            return 0.0;
+        }
+        1.0 / (1.0 + self.lambda(wi) + self.lambda(wo))
+    }
+
+    /// Masking-shadowing of the chosen form.
+    pub fn g2(&self, form: G2Form, wi: DVec3, wo: DVec3, m: DVec3) -> f64 {
+        match form {
+            G2Form::Separable => self.g2_separable(wi, wo, m),
+            G2Form::HeightCorrelated => self.g2_height_correlated(wi, wo, m),
+            G2Form::VCavity => v_cavity(wi, wo, m),
+        }
+    }
+
+    /// Distribution of visible normals D_wi(m) = G1(wi, m) max(0, wi·m) D(m) / cos θi (Heitz 2018 eq. 1),
+    /// the pdf of `sample_visible` with respect to solid angle of m.
+    pub fn pdf_visible(&self, wi: DVec3, m: DVec3) -> f64 {
+        if wi.z <= 0.0 {
+            return 0.0;
+        }
+        self.g1(wi, m) * wi.dot(m).max(0.0) * self.d(m) / wi.z
+    }
+
+    /// Samples a visible normal for wi (wi.z > 0) from two uniform numbers. GGX: Heitz 2018, "Sampling the GGX
+    /// distribution of visible normals" (JCGT 7(4)), listing 1. Beckmann: Heitz & d'Eon 2014 §4 (stretch,
+    /// sample the slope distribution of the standard Beckmann configuration, unstretch).
+    pub fn sample_visible(&self, wi: DVec3, u1: f64, u2: f64) -> DVec3 {
+        let v = self.local(wi);
+        let vh = DVec3::new(self.alpha_x * v.x, self.alpha_y * v.y, v.z).normalize();
+        let m = match self.dist {
+            Distribution::Ggx => {
+                let len2 = vh.x * vh.x + vh.y * vh.y;
+                let t1 = if len2 > 0.0 { DVec3::new(-vh.y, vh.x, 0.0) / len2.sqrt() } else { DVec3::X };
+                let t2 = vh.cross(t1);
+                let r = u1.sqrt();
+                let phi = 2.0 * PI * u2;
+                let p1 = r * phi.cos();
+                let s = 0.5 * (1.0 + vh.z);
+                let p2 = (1.0 - s) * (1.0 - p1 * p1).max(0.0).sqrt() + s * r * phi.sin();
+                let nh = p1 * t1 + p2 * t2 + (1.0 - p1 * p1 - p2 * p2).max(0.0).sqrt() * vh;
+                DVec3::new(self.alpha_x * nh.x, self.alpha_y * nh.y, nh.z.max(0.0))
+            }
+            Distribution::Beckmann => {
+                let (sx, sy) = beckmann_sample_slopes(vh, u1, u2);
+                DVec3::new(-sx * self.alpha_x, -sy * self.alpha_y, 1.0)
+            }
+        };
+        self.from_local(m.normalize())
+    }
+}
+
+/// Which masking-shadowing term a microfacet BSDF uses.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum G2Form {
+    Separable,
+    HeightCorrelated,
+    VCavity,
+}
+
+/// V-cavity masking-shadowing of Torrance–Sparrow 1967 / Cook–Torrance 1982:
+/// min(1, 2(n·m)(n·wo)/(wo·m), 2(n·m)(n·wi)/(wi·m)).
+pub fn v_cavity(wi: DVec3, wo: DVec3, m: DVec3) -> f64 {
+    let (im, om) = (wi.dot(m), wo.dot(m));
+    if im * wi.z <= 0.0 || om * wo.z <= 0.0 {
+        return 0.0;
+    }
+    (2.0 * m.z * wo.z / om).abs().min((2.0 * m.z * wi.z / im).abs()).min(1.0)
+}
+
+/// Samples the slopes (x̃, ỹ) of the visible standard Beckmann distribution (α = 1) seen from the stretched
+/// direction `v` (Heitz & d'Eon 2014 §4). In a frame aligned with v the density is
+/// ∝ max(0, cot θ − x̃) e^{−x̃²} e^{−ỹ²}: x̃ is found by inverting its CDF
+/// c·(√π/2)(1 + erf x̃) + e^{−x̃²}/2 (safeguarded Newton), ỹ = erf⁻¹(2u₂ − 1).
+fn beckmann_sample_slopes(v: DVec3, u1: f64, u2: f64) -> (f64, f64) {
+    let sin_t = (1.0 - v.z * v.z).max(0.0).sqrt();
+    let (cos_phi, sin_phi) = if sin_t > 1e-12 { (v.x / sin_t, v.y / sin_t) } else { (1.0, 0.0) };
+    let c = if sin_t > 1e-12 { v.z / sin_t } else { f64::INFINITY };
+    let x = if c > 1e6 {
+        erf_inv(2.0 * u1 - 1.0)
+    } else {
+        let sqrt_pi = PI.sqrt();
+        let cdf = |x: f64| 0.5 * c * sqrt_pi * (1.0 + libm::erf(x)) + 0.5 * (-x * x).exp();
+        let target = u1 * cdf(c);
+        let (mut lo, mut hi) = (-6.0f64, c.min(6.0));
+        let mut x = 0.5 * (lo + hi);
+        for _ in 0..64 {
+            let f = cdf(x) - target;
+            if f.abs() < 1e-14 {
+                break;
+            }
+            if f > 0.0 { hi = x } else { lo = x }
+            let newton = x - f / ((c - x) * (-x * x).exp());
+            x = if newton > lo && newton < hi { newton } else { 0.5 * (lo + hi) };
+            if hi - lo < 1e-13 {
+                break;
+            }
+        }
+        x
+    };
+    let y = erf_inv(2.0 * u2 - 1.0);
+    (cos_phi * x - sin_phi * y, sin_phi * x + cos_phi * y)
+}
+
+/// Inverse error function: Giles 2010 single-precision starting point refined by two Newton steps on libm's erf.
+pub fn erf_inv(y: f64) -> f64 {
+    let y = y.clamp(-1.0 + 1e-16, 1.0 - 1e-16);
+    let w = -((1.0 - y) * (1.0 + y)).ln();
+    let mut x = if w < 5.0 {
+        let w = w - 2.5;
+        let p = [2.81022636e-08, 3.43273939e-07, -3.5233877e-06, -4.39150654e-06, 0.00021858087, -0.00125372503,
+            -0.00417768164, 0.246640727, 1.50140941];
+        p.iter().fold(0.0, |acc, &c| acc * w + c) * y
+    } else {
+        let w = w.sqrt() - 3.0;
+        let p = [-0.000200214257, 0.000100950558, 0.00134934322, -0.00367342844, 0.00573950773, -0.0076224613,
+            0.00943887047, 1.00167406, 2.83297682];
+        p.iter().fold(0.0, |acc, &c| acc * w + c) * y
+    };
+    for _ in 0..2 {
+        x -= (libm::erf(x) - y) / (2.0 / PI.sqrt() * (-x * x).exp());
+    }
+    x
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn sphere_dir(theta: f64, phi: f64) -> DVec3 {
+        DVec3::new(theta.sin() * phi.cos(), theta.sin() * phi.sin(), theta.cos())
+    }
+
+    /// ∫ D(m) (m·n) dm = 1 over the hemisphere (midpoint rule in (θ, φ)).
+    fn projected_area(mf: &Microfacet, w: DVec3, f: impl Fn(&Microfacet, DVec3) -> f64) -> f64 {
+        let (nt, np) = (800, 400);
+        let mut sum = 0.0;
+        for i in 0..nt {
+            let t = (i as f64 + 0.5) / nt as f64 * 0.5 * PI;
+            for j in 0..np {
+                let p = (j as f64 + 0.5) / np as f64 * 2.0 * PI;
+                let m = sphere_dir(t, p);
+                sum += f(mf, m) * m.dot(w).max(0.0) / m.z.max(1e-300) * m.z * t.sin();
+            }
+        }
+        sum * (0.5 * PI / nt as f64) * (2.0 * PI / np as f64)
+    }
+
+    #[test]
+    fn ndf_normalisation_and_smith_consistency() {
+        for dist in [Distribution::Ggx, Distribution::Beckmann] {
+            let mf = Microfacet::new(dist, 0.4, 0.7, 0.3);
+            let norm = projected_area(&mf, DVec3::Z, |m, x| m.d(x));
+            assert!((norm - 1.0).abs() < 2e-3, "{dist:?}: ∫D cos = {norm}");
+            // Projected area seen from w equals cos θ (1 + Λ(w)) (Heitz 2014 eq. 14).
+            let w = sphere_dir(1.0, 0.8);
+            let area = projected_area(&mf, w, |m, x| m.d(x));
+            assert!((area - w.z * (1.0 + mf.lambda(w))).abs() < 3e-3, "{dist:?}: {area}");
+        }
+    }
+
+    #[test]
+    fn visible_normals_are_consistent_with_their_pdf() {
+        for dist in [Distribution::Ggx, Distribution::Beckmann] {
+            let mf = Microfacet::new(dist, 0.3, 0.6, 0.5);
+            let wi = sphere_dir(1.1, 2.0);
+            // The sampler's mean normal equals ∫ pdf(m) m dm (quadrature): checks the sampler against its pdf.
+            let n = 200_000;
+            let mut mean = DVec3::ZERO;
+            for i in 0..n {
+                let u1 = (i as f64 + 0.5) / n as f64;
+                let u2 = ((i as f64 * 0.618_033_988_749_895) + 0.5).fract();
+                mean += mf.sample_visible(wi, u1, u2);
+            }
+            mean /= n as f64;
+            let (nt, np) = (600, 600);
+            let mut expect = DVec3::ZERO;
+            let mut norm = 0.0;
+            for i in 0..nt {
+                let t = (i as f64 + 0.5) / nt as f64 * 0.5 * PI;
+                for j in 0..np {
+                    let p = (j as f64 + 0.5) / np as f64 * 2.0 * PI;
+                    let m = sphere_dir(t, p);
+                    let w = mf.pdf_visible(wi, m) * t.sin();
+                    expect += w * m;
+                    norm += w;
+                }
+            }
+            let da = (0.5 * PI / nt as f64) * (2.0 * PI / np as f64);
+            assert!((norm * da - 1.0).abs() < 2e-3, "{dist:?}: ∫pdf = {}", norm * da);
+            let expect = expect / norm;
+            assert!((mean - expect).length() < 3e-3, "{dist:?}: {mean} vs {expect}");
+        }
+    }
+
+    #[test]
+    fn erf_inv_inverts_erf() {
+        for y in [-0.999999, -0.9, -0.3, 0.0, 0.2, 0.77, 0.99999] {
+            assert!((libm::erf(erf_inv(y)) - y).abs() < 1e-13, "{y}");
+        }
+    }
+
+    #[test]
+    fn v_cavity_is_at_most_one_and_symmetric() {
+        let (wi, wo) = (sphere_dir(0.7, 0.1), sphere_dir(1.3, 2.9));
+        let m = (wi + wo).normalize();
+        let g = v_cavity(wi, wo, m);
+        assert!(g > 0.0 && g <= 1.0);
+        assert_eq!(g, v_cavity(wo, wi, m));
+    }
+}

@@ -1,0 +1,370 @@
+//! Thin PyO3 bindings: NumPy arrays in, NumPy arrays out. Inputs arrive already broadcast to one batch shape
+//! (python/lamina/_arrays.py); here they are checked, gathered into f64 rows and evaluated in parallel with rayon
+//! while the GIL is released. No Rust panic crosses this boundary: bad input becomes ValueError / TypeError.
+
+use crate::bsdf;
+use crate::models::{Model, Options, MODELS};
+use crate::optics::fresnel::{self, FresnelForm};
+use crate::optics::microfacet::{Distribution, G2Form, Microfacet};
+use crate::stack::{Error, Layer, Stack};
+use glam::DVec3;
+use numpy::ndarray::{ArrayD, IxDyn};
+use numpy::{IntoPyArray, PyReadonlyArrayDyn, PyUntypedArrayMethods};
+use pyo3::exceptions::{PyTypeError, PyValueError};
+use pyo3::prelude::*;
+use pyo3::types::{PyDict, PyList};
+use rayon::prelude::*;
+
+impl From<Error> for PyErr {
+    fn from(e: Error) -> PyErr {
+        PyValueError::new_err(e.to_string())
+    }
+}
+
+/// How an input array is checked: a direction (3-vector, non-zero, normalised here) or plain values.
+#[derive(Clone, Copy, PartialEq)]
+enum Kind {
+    Direction,
+    Values(usize),
+}
+
+struct Input {
+    batch: Vec<usize>,
+    data: Vec<f64>,
+    is_f32: bool,
+}
+
+fn gather(name: &str, obj: &Bound<'_, PyAny>, kind: Kind) -> PyResult<Input> {
+    let k = match kind {
+        Kind::Direction => 3,
+        Kind::Values(k) => k,
+    };
+    let (shape, mut data, is_f32) = if let Ok(a) = obj.extract::<PyReadonlyArrayDyn<'_, f64>>() {
+        (a.shape().to_vec(), a.as_array().iter().copied().collect::<Vec<f64>>(), false)
+    } else if let Ok(a) = obj.extract::<PyReadonlyArrayDyn<'_, f32>>() {
+        (a.shape().to_vec(), a.as_array().iter().map(|&x| x as f64).collect(), true)
+    } else {
+        return Err(PyTypeError::new_err(format!("{name} must be a float32 or float64 array")));
+    };
+    if shape.last() != Some(&k) {
+        return Err(PyValueError::new_err(format!("{name} must have shape (..., {k}), got {shape:?}")));
+    }
+    if let Some(i) = data.iter().position(|x| !x.is_finite()) {
+        return Err(PyValueError::new_err(format!("{name} contains NaN or Inf (flat index {i})")));
+    }
+    if kind == Kind::Direction {
+        for (i, row) in data.chunks_exact_mut(3).enumerate() {
+            let len = (row[0] * row[0] + row[1] * row[1] + row[2] * row[2]).sqrt();
+            if len == 0.0 {
+                return Err(PyValueError::new_err(format!("{name} contains a zero-length direction (row {i})")));
+            }
+            row.iter_mut().for_each(|x| *x /= len);
+        }
+    }
+    Ok(Input { batch: shape[..shape.len() - 1].to_vec(), data, is_f32 })
+}
+
+/// Evaluates `kernel` on every row of the (already broadcast) inputs, in parallel without the GIL, and returns
+/// an array of shape batch + (out_k,): float32 when every input was float32, float64 otherwise.
+fn batch<'py>(
+    py: Python<'py>,
+    inputs: &[(&str, &Bound<'py, PyAny>, Kind)],
+    out_k: usize,
+    kernel: impl Fn(&[&[f64]], &mut [f64]) + Sync,
+) -> PyResult<Bound<'py, PyAny>> {
+    let gathered = inputs.iter().map(|(n, o, k)| gather(n, o, *k)).collect::<PyResult<Vec<_>>>()?;
+    let batch_shape = gathered[0].batch.clone();
+    if let Some(other) = gathered.iter().position(|g| g.batch != batch_shape) {
+        return Err(PyValueError::new_err(format!(
+            "{} has batch shape {:?}, which does not match {}'s {:?}",
+            inputs[other].0, gathered[other].batch, inputs[0].0, batch_shape
+        )));
+    }
+    let n: usize = batch_shape.iter().product();
+    let widths: Vec<usize> = inputs.iter().map(|(_, _, k)| if let Kind::Values(k) = k { *k } else { 3 }).collect();
+    let mut out = vec![0.0f64; n * out_k];
+    py.detach(|| {
+        out.par_chunks_mut(out_k.max(1)).enumerate().with_min_len(512).for_each(|(i, o)| {
+            let rows: Vec<&[f64]> = gathered.iter().zip(&widths).map(|(g, &w)| &g.data[i * w..(i + 1) * w]).collect();
+            kernel(&rows, o);
+        })
+    });
+    let mut shape = batch_shape;
+    shape.push(out_k);
+    let all_f32 = gathered.iter().all(|g| g.is_f32);
+    let array = ArrayD::from_shape_vec(IxDyn(&shape), out).expect("shape matches length");
+    Ok(if all_f32 {
+        array.mapv(|x| x as f32).into_pyarray(py).into_any()
+    } else {
+        array.into_pyarray(py).into_any()
+    })
+}
+
+fn vec3(row: &[f64]) -> DVec3 {
+    DVec3::new(row[0], row[1], row[2])
+}
+
+fn parse_distribution(name: &str) -> PyResult<Distribution> {
+    match name {
+        "ggx" => Ok(Distribution::Ggx),
+        "beckmann" => Ok(Distribution::Beckmann),
+        _ => Err(PyValueError::new_err(format!("distribution must be 'ggx' or 'beckmann', got {name:?}"))),
+    }
+}
+
+fn parse_g2(name: &str) -> PyResult<G2Form> {
+    match name {
+        "separable" => Ok(G2Form::Separable),
+        "height_correlated" => Ok(G2Form::HeightCorrelated),
+        "v_cavity" => Ok(G2Form::VCavity),
+        _ => Err(PyValueError::new_err(format!(
+            "g2 must be 'separable', 'height_correlated' or 'v_cavity', got {name:?}"
+        ))),
+    }
+}
+
+fn parse_fresnel(name: &str) -> PyResult<FresnelForm> {
+    match name {
+        "exact" => Ok(FresnelForm::Exact),
+        "schlick" => Ok(FresnelForm::Schlick),
+        "lazanyi" => Ok(FresnelForm::Lazanyi),
+        _ => Err(PyValueError::new_err(format!("fresnel must be 'exact', 'schlick' or 'lazanyi', got {name:?}"))),
+    }
+}
+
+fn item<'py, T: FromPyObjectOwned<'py>>(d: &Bound<'py, PyDict>, key: &str, i: usize) -> PyResult<T> {
+    let v = d.get_item(key)?.ok_or_else(|| PyValueError::new_err(format!("layer {i}: missing {key}")))?;
+    v.extract::<T>().map_err(|e| PyTypeError::new_err(format!("layer {i}: {key}: {}", Into::<PyErr>::into(e))))
+}
+
+/// Builds a validated Stack from the per-channel layer dictionaries made by python/lamina/layers.py.
+fn parse_stack(layers: &Bound<'_, PyList>, ext_ior: f64) -> PyResult<Stack> {
+    let mut out = Vec::with_capacity(layers.len());
+    for (i, obj) in layers.iter().enumerate() {
+        let d = obj.cast::<PyDict>().map_err(|_| PyTypeError::new_err(format!("layer {i} must be a dict")))?;
+        let kind: String = item(d, "kind", i)?;
+        out.push(match kind.as_str() {
+            "dielectric" => Layer::Dielectric {
+                ior: item(d, "ior", i)?,
+                alpha: item(d, "roughness", i)?,
+                angle: item(d, "angle", i)?,
+                thickness: item(d, "thickness", i)?,
+                sigma_a: item(d, "sigma_a", i)?,
+                sigma_s: item(d, "sigma_s", i)?,
+                g: item(d, "g", i)?,
+            },
+            "conductor" => Layer::Conductor {
+                ior: item(d, "ior", i)?,
+                k: item(d, "k", i)?,
+                alpha: item(d, "roughness", i)?,
+                angle: item(d, "angle", i)?,
+            },
+            "diffuse" => Layer::Diffuse { albedo: item(d, "albedo", i)?, roughness: item(d, "roughness", i)? },
+            other => return Err(PyValueError::new_err(format!("layer {i}: unknown kind {other:?}"))),
+        });
+    }
+    Ok(Stack::new(out, ext_ior)?)
+}
+
+/// Validates a stack description and that `model` can evaluate it; raises ValueError otherwise.
+#[pyfunction]
+#[pyo3(signature = (layers, ext_ior, model=None))]
+fn check_stack(layers: &Bound<'_, PyList>, ext_ior: f64, model: Option<&str>) -> PyResult<usize> {
+    let stack = parse_stack(layers, ext_ior)?;
+    if let Some(m) = model {
+        Model::parse(m)?.check(&stack)?;
+    }
+    Ok(stack.channels)
+}
+
+/// f(wi, wo) of a stack under a model: (..., channels).
+#[pyfunction]
+#[pyo3(signature = (layers, ext_ior, model, wi, wo, distribution="ggx", g2="height_correlated", fresnel="exact"))]
+#[allow(clippy::too_many_arguments)]
+fn eval_stack<'py>(
+    py: Python<'py>,
+    layers: &Bound<'py, PyList>,
+    ext_ior: f64,
+    model: &str,
+    wi: &Bound<'py, PyAny>,
+    wo: &Bound<'py, PyAny>,
+    distribution: &str,
+    g2: &str,
+    fresnel: &str,
+) -> PyResult<Bound<'py, PyAny>> {
+    let stack = parse_stack(layers, ext_ior)?;
+    let model = Model::parse(model)?;
+    model.check(&stack)?;
+    let opts = Options { distribution: parse_distribution(distribution)?, g2: parse_g2(g2)?, fresnel: parse_fresnel(fresnel)? };
+    batch(py, &[("wi", wi, Kind::Direction), ("wo", wo, Kind::Direction)], stack.channels, |r, o| {
+        model.eval(&stack, &opts, vec3(r[0]), vec3(r[1]), o)
+    })
+}
+
+/// A scalar-per-element kernel of `m` inputs, each of shape (..., 1).
+fn scalar_kernel<'py, const M: usize>(
+    py: Python<'py>,
+    names: [&str; M],
+    args: [&Bound<'py, PyAny>; M],
+    f: impl Fn([f64; M]) -> f64 + Sync,
+) -> PyResult<Bound<'py, PyAny>> {
+    let inputs: Vec<_> = names.iter().zip(args).map(|(n, a)| (*n, a, Kind::Values(1))).collect();
+    batch(py, &inputs, 1, |r, o| o[0] = f(std::array::from_fn(|j| r[j][0])))
+}
+
+#[pyfunction]
+fn fresnel_dielectric<'py>(py: Python<'py>, cos_i: &Bound<'py, PyAny>, eta: &Bound<'py, PyAny>) -> PyResult<Bound<'py, PyAny>> {
+    scalar_kernel(py, ["cos_i", "eta"], [cos_i, eta], |[c, e]| fresnel::dielectric(c, e))
+}
+
+#[pyfunction]
+fn fresnel_conductor<'py>(
+    py: Python<'py>,
+    cos_i: &Bound<'py, PyAny>,
+    eta: &Bound<'py, PyAny>,
+    k: &Bound<'py, PyAny>,
+) -> PyResult<Bound<'py, PyAny>> {
+    scalar_kernel(py, ["cos_i", "eta", "k"], [cos_i, eta, k], |[c, e, k]| fresnel::conductor(c, e, k))
+}
+
+#[pyfunction]
+fn fresnel_schlick<'py>(py: Python<'py>, cos_i: &Bound<'py, PyAny>, f0: &Bound<'py, PyAny>) -> PyResult<Bound<'py, PyAny>> {
+    scalar_kernel(py, ["cos_i", "f0"], [cos_i, f0], |[c, f]| fresnel::schlick(c, f))
+}
+
+#[pyfunction]
+fn fresnel_lazanyi<'py>(
+    py: Python<'py>,
+    cos_i: &Bound<'py, PyAny>,
+    eta: &Bound<'py, PyAny>,
+    k: &Bound<'py, PyAny>,
+) -> PyResult<Bound<'py, PyAny>> {
+    scalar_kernel(py, ["cos_i", "eta", "k"], [cos_i, eta, k], |[c, e, k]| fresnel::lazanyi(c, e, k))
+}
+
+#[pyfunction]
+fn fresnel_diffuse_reflectance<'py>(py: Python<'py>, eta: &Bound<'py, PyAny>) -> PyResult<Bound<'py, PyAny>> {
+    scalar_kernel(py, ["eta"], [eta], |[e]| fresnel::diffuse_reflectance(e))
+}
+
+/// The microfacet distribution described by the Python keyword arguments.
+fn microfacet(alpha_x: f64, alpha_y: f64, angle: f64, distribution: &str) -> PyResult<Microfacet> {
+    for (name, a) in [("alpha_x", alpha_x), ("alpha_y", alpha_y)] {
+        if !(a > 0.0 && a <= 1.0) {
+            return Err(PyValueError::new_err(format!("{name} must be in (0, 1], got {a}")));
+        }
+    }
+    if !angle.is_finite() {
+        return Err(PyValueError::new_err(format!("angle must be finite radians, got {angle}")));
+    }
+    Ok(Microfacet::new(parse_distribution(distribution)?, alpha_x, alpha_y, angle))
+}
+
+#[pyfunction]
+fn microfacet_d<'py>(py: Python<'py>, m: &Bound<'py, PyAny>, alpha_x: f64, alpha_y: f64, angle: f64, distribution: &str) -> PyResult<Bound<'py, PyAny>> {
+    let mf = microfacet(alpha_x, alpha_y, angle, distribution)?;
+    batch(py, &[("m", m, Kind::Direction)], 1, |r, o| o[0] = mf.d(vec3(r[0])))
+}
+
+#[pyfunction]
+fn microfacet_lambda<'py>(py: Python<'py>, w: &Bound<'py, PyAny>, alpha_x: f64, alpha_y: f64, angle: f64, distribution: &str) -> PyResult<Bound<'py, PyAny>> {
+    let mf = microfacet(alpha_x, alpha_y, angle, distribution)?;
+    batch(py, &[("w", w, Kind::Direction)], 1, |r, o| o[0] = mf.lambda(vec3(r[0])))
+}
+
+#[pyfunction]
+#[allow(clippy::too_many_arguments)]
+fn microfacet_g2<'py>(
+    py: Python<'py>,
+    wi: &Bound<'py, PyAny>,
+    wo: &Bound<'py, PyAny>,
+    m: &Bound<'py, PyAny>,
+    alpha_x: f64,
+    alpha_y: f64,
+    angle: f64,
+    distribution: &str,
+    g2: &str,
+) -> PyResult<Bound<'py, PyAny>> {
+    let (mf, form) = (microfacet(alpha_x, alpha_y, angle, distribution)?, parse_g2(g2)?);
+    let inputs = [("wi", wi, Kind::Direction), ("wo", wo, Kind::Direction), ("m", m, Kind::Direction)];
+    batch(py, &inputs, 1, |r, o| o[0] = mf.g2(form, vec3(r[0]), vec3(r[1]), vec3(r[2])))
+}
+
+#[pyfunction]
+fn sample_visible<'py>(py: Python<'py>, wi: &Bound<'py, PyAny>, u: &Bound<'py, PyAny>, alpha_x: f64, alpha_y: f64, angle: f64, distribution: &str) -> PyResult<Bound<'py, PyAny>> {
+    let mf = microfacet(alpha_x, alpha_y, angle, distribution)?;
+    batch(py, &[("wi", wi, Kind::Direction), ("u", u, Kind::Values(2))], 3, |r, o| {
+        let wi = vec3(r[0]);
+        if wi.z > 0.0 {
+            o.copy_from_slice(&mf.sample_visible(wi, r[1][0].clamp(0.0, 1.0), r[1][1].clamp(0.0, 1.0)).to_array());
+        }
+    })
+}
+
+#[pyfunction]
+fn pdf_visible<'py>(py: Python<'py>, wi: &Bound<'py, PyAny>, m: &Bound<'py, PyAny>, alpha_x: f64, alpha_y: f64, angle: f64, distribution: &str) -> PyResult<Bound<'py, PyAny>> {
+    let mf = microfacet(alpha_x, alpha_y, angle, distribution)?;
+    batch(py, &[("wi", wi, Kind::Direction), ("m", m, Kind::Direction)], 1, |r, o| {
+        o[0] = mf.pdf_visible(vec3(r[0]), vec3(r[1]))
+    })
+}
+
+/// Rough conductor or dielectric BSDF of one interface, one output channel per entry of `eta`.
+#[pyfunction]
+#[allow(clippy::too_many_arguments)]
+fn interface_bsdf<'py>(
+    py: Python<'py>,
+    kind: &str,
+    wi: &Bound<'py, PyAny>,
+    wo: &Bound<'py, PyAny>,
+    eta: Vec<f64>,
+    k: Vec<f64>,
+    alpha_x: f64,
+    alpha_y: f64,
+    angle: f64,
+    distribution: &str,
+    g2: &str,
+) -> PyResult<Bound<'py, PyAny>> {
+    let (mf, form) = (microfacet(alpha_x, alpha_y, angle, distribution)?, parse_g2(g2)?);
+    if let Some(e) = eta.iter().find(|e| !(e.is_finite() && **e > 0.0)) {
+        return Err(PyValueError::new_err(format!("eta must be in (0, inf), got {e}")));
+    }
+    if let Some(x) = k.iter().find(|x| !(x.is_finite() && **x >= 0.0)) {
+        return Err(PyValueError::new_err(format!("k must be in [0, inf), got {x}")));
+    }
+    let conductor = match kind {
+        "conductor" => true,
+        "dielectric" => false,
+        _ => return Err(PyValueError::new_err(format!("kind must be 'conductor' or 'dielectric', got {kind:?}"))),
+    };
+    batch(py, &[("wi", wi, Kind::Direction), ("wo", wo, Kind::Direction)], eta.len(), |r, o| {
+        let (wi, wo) = (vec3(r[0]), vec3(r[1]));
+        for (c, out) in o.iter_mut().enumerate() {
+            *out = if conductor {
+                bsdf::rough_conductor(&mf, form, eta[c], k[c], wi, wo)
+            } else {
+                bsdf::rough_dielectric(&mf, form, eta[c], wi, wo)
+            };
+        }
+    })
+}
+
+#[pymodule]
+fn _lamina(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add("MODELS", MODELS.to_vec())?;
+    m.add("__version__", env!("CARGO_PKG_VERSION"))?;
+    m.add_function(wrap_pyfunction!(check_stack, m)?)?;
+    m.add_function(wrap_pyfunction!(eval_stack, m)?)?;
+    m.add_function(wrap_pyfunction!(fresnel_dielectric, m)?)?;
+    m.add_function(wrap_pyfunction!(fresnel_conductor, m)?)?;
+    m.add_function(wrap_pyfunction!(fresnel_schlick, m)?)?;
+    m.add_function(wrap_pyfunction!(fresnel_lazanyi, m)?)?;
+    m.add_function(wrap_pyfunction!(fresnel_diffuse_reflectance, m)?)?;
+    m.add_function(wrap_pyfunction!(microfacet_d, m)?)?;
+    m.add_function(wrap_pyfunction!(microfacet_lambda, m)?)?;
+    m.add_function(wrap_pyfunction!(microfacet_g2, m)?)?;
+    m.add_function(wrap_pyfunction!(sample_visible, m)?)?;
+    m.add_function(wrap_pyfunction!(pdf_visible, m)?)?;
+    m.add_function(wrap_pyfunction!(interface_bsdf, m)?)?;
+    Ok(())
+}
