@@ -326,6 +326,9 @@ fn interface_bsdf<'py>(
     g2: &str,
 ) -> PyResult<Bound<'py, PyAny>> {
     let (mf, form) = (microfacet(alpha_x, alpha_y, angle, distribution)?, parse_g2(g2)?);
+    if eta.is_empty() || eta.len() != k.len() {
+        return Err(PyValueError::new_err(format!("eta and k need the same number (> 0) of channels, got {} and {}", eta.len(), k.len())));
+    }
     if let Some(e) = eta.iter().find(|e| !(e.is_finite() && **e > 0.0)) {
         return Err(PyValueError::new_err(format!("eta must be in (0, inf), got {e}")));
     }

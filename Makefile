@@ -1,0 +1,50 @@
+# Two entry points on a fresh machine: `make demo` and `make test`. Each sets up what it needs.
+SHELL := /bin/bash
+PY ?= python3
+VENV := .venv
+VPY := $(VENV)/bin/python
+# Mitsuba's llvm_ad_* variants need a system libLLVM >= 15 (Debian: libllvm19, installed by system-deps when root);
+# the tests fall back to the scalar_* variants without it and say so.
+LLVM := DRJIT_LIBLLVM_PATH="$$(ls /usr/lib/*/libLLVM-19.so /usr/lib/*/libLLVM-1[5-9].so /usr/lib/*/libLLVM.so.1[5-9]* 2>/dev/null | head -1)"
+
+.PHONY: demo test develop venv test-deps system-deps rust-test py-test bench clean
+
+$(VPY):
+	$(PY) -m venv $(VENV)
+	$(VPY) -m pip install -q --upgrade pip
+
+venv: $(VPY)
+	$(VPY) -m pip install -q "maturin>=1.7,<2" "numpy>=1.22" "matplotlib>=3.5" tqdm
+
+# Builds the Rust extension in release mode into the venv (editable install of python/lamina).
+develop: venv
+	$(VENV)/bin/maturin develop --release -q
+
+demo: develop
+	$(VENV)/bin/lamina plot --material gold --out out
+	$(VENV)/bin/lamina plot --material brushed-aluminium --out out
+	$(VENV)/bin/lamina plot --material red-plastic --out out
+
+# Debian's libLLVM for Mitsuba's llvm_ad_* variants, installed when running as root (CI and dev machines).
+system-deps:
+	@if [ "$$(id -u)" = 0 ] && command -v apt-get >/dev/null && ! ls /usr/lib/*/libLLVM* 2>/dev/null | grep -qE 'LLVM(-|\.so\.)(1[5-9]|[2-9][0-9])'; then \
+		echo "installing libllvm19 for Mitsuba's llvm variants"; \
+		apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq libllvm19 >/dev/null; \
+	fi
+
+test-deps: venv system-deps
+	$(VPY) -m pip install -q "pytest>=7" "hypothesis>=6" "colour-science>=0.4.4" scipy "mitsuba>=3.9,<3.10"
+
+rust-test:
+	cargo test --release
+
+py-test: develop test-deps
+	$(LLVM) $(VPY) -m pytest -q tests
+
+test: rust-test py-test
+
+bench: develop test-deps
+	$(LLVM) $(VPY) benchmarks/bench_conductor.py
+
+clean:
+	rm -rf $(VENV) target out

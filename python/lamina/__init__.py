@@ -1,0 +1,20 @@
+"""lamina: layered BRDF models for rendering research.
+
+Evaluate f(wi, wo) of a layer stack on NumPy arrays:
+
+    >>> import numpy as np, lamina
+    >>> stack = lamina.Stack([lamina.materials.metal("Au", roughness=0.2)])
+    >>> f = stack.eval(np.array([0.0, 0.0, 1.0]), np.array([0.3, 0.0, 0.95]))  # (3,) linear RGB, 1/sr
+
+Conventions (local frame, z = normal, directions pointing away, f without the cosine): docs/conventions.md.
+"""
+
+from . import materials, optics
+from ._lamina import __version__
+from .layers import MODELS, Conductor, Dielectric, Diffuse, Stack
+from .spectrum import RGB_WAVELENGTHS, Spectrum, to_srgb, to_xyz, xyz_weights
+
+__all__ = [
+    "MODELS", "Conductor", "Dielectric", "Diffuse", "Stack", "Spectrum", "RGB_WAVELENGTHS",
+    "to_xyz", "to_srgb", "xyz_weights", "materials", "optics", "__version__",
+]

@@ -1,0 +1,149 @@
+"""Layer descriptions and the layer stack. Conventions: docs/conventions.md."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from numbers import Real
+from typing import Sequence, Union
+
+import numpy as np
+
+from . import _lamina
+from ._arrays import broadcast
+from .spectrum import RGB_WAVELENGTHS, Spectrum
+
+#: A colour quantity: a scalar (grey), an RGB triple, or a Spectrum.
+Colour = Union[float, Sequence[float], Spectrum]
+#: A GGX/Beckmann roughness alpha in [0, 1]: isotropic scalar or (alpha_x, alpha_y) along the layer's tangent.
+Roughness = Union[float, Sequence[float]]
+
+MODELS: tuple[str, ...] = tuple(_lamina.MODELS)
+
+
+def _channels(name: str, value: Colour, wavelengths) -> list[float]:
+    """Resolves a colour quantity to one value per channel: RGB (wavelengths None) or the given wavelengths."""
+    if isinstance(value, Spectrum):
+        return value(RGB_WAVELENGTHS if wavelengths is None else wavelengths).tolist()
+    if isinstance(value, Real):
+        return [float(value)] * (3 if wavelengths is None else len(wavelengths))
+    try:
+        triple = [float(v) for v in value]
+    except (TypeError, ValueError):
+        raise TypeError(f"{name} must be a number, an RGB triple or a lamina.Spectrum, got {value!r}") from None
+    if len(triple) != 3:
+        raise ValueError(f"{name} must be a number, an RGB triple or a lamina.Spectrum, got {len(triple)} values")
+    if wavelengths is not None:
+        raise ValueError(f"{name} is an RGB triple; spectral evaluation (wavelengths=...) needs a scalar or a Spectrum")
+    return triple
+
+
+def _roughness(value: Roughness) -> tuple[float, float]:
+    if isinstance(value, Real):
+        return float(value), float(value)
+    try:
+        ax, ay = (float(v) for v in value)
+    except (TypeError, ValueError):
+        raise TypeError(f"roughness must be a number or an (alpha_x, alpha_y) pair, got {value!r}") from None
+    return ax, ay
+
+
+@dataclass(frozen=True)
+class Dielectric:
+    """A dielectric interface of absolute IOR `ior` over a homogeneous slab of `thickness` (scene units) with
+    absorption `sigma_a` and scattering `sigma_s` coefficients (1/scene unit) and Henyey–Greenstein `g`.
+    `roughness` is the GGX/Beckmann alpha (scalar or (alpha_x, alpha_y)), `angle` (radians) rotates the tangent
+    frame along which alpha_x applies."""
+
+    ior: Colour
+    roughness: Roughness = 0.0
+    angle: float = 0.0
+    thickness: float = 0.0
+    sigma_a: Colour = 0.0
+    sigma_s: Colour = 0.0
+    g: float = 0.0
+
+    def _resolve(self, wavelengths) -> dict:
+        return dict(
+            kind="dielectric", ior=_channels("ior", self.ior, wavelengths), roughness=_roughness(self.roughness),
+            angle=float(self.angle), thickness=float(self.thickness),
+            sigma_a=_channels("sigma_a", self.sigma_a, wavelengths),
+            sigma_s=_channels("sigma_s", self.sigma_s, wavelengths), g=float(self.g),
+        )
+
+
+@dataclass(frozen=True)
+class Conductor:
+    """An opaque conductor of absolute complex IOR `ior` + i`k` with GGX/Beckmann `roughness` and tangent `angle`."""
+
+    ior: Colour
+    k: Colour
+    roughness: Roughness = 0.0
+    angle: float = 0.0
+
+    def _resolve(self, wavelengths) -> dict:
+        return dict(
+            kind="conductor", ior=_channels("ior", self.ior, wavelengths), k=_channels("k", self.k, wavelengths),
+            roughness=_roughness(self.roughness), angle=float(self.angle),
+        )
+
+
+@dataclass(frozen=True)
+class Diffuse:
+    """An opaque diffuse base of `albedo` in [0, 1]: Lambertian when `roughness` = 0, otherwise Oren–Nayar with
+    facet-slope standard deviation sigma = `roughness` radians (in [0, 1])."""
+
+    albedo: Colour
+    roughness: float = 0.0
+
+    def _resolve(self, wavelengths) -> dict:
+        return dict(kind="diffuse", albedo=_channels("albedo", self.albedo, wavelengths), roughness=float(self.roughness))
+
+
+Layer = Union[Dielectric, Conductor, Diffuse]
+
+
+class Stack:
+    """Layers from top to bottom, ending in one opaque base (Conductor or Diffuse), under a medium of absolute
+    IOR `ext_ior` (air = 1.0). Validated at construction: bad parameters raise ValueError / TypeError."""
+
+    def __init__(self, layers: Sequence[Layer], ext_ior: float = 1.0):
+        if isinstance(layers, (Dielectric, Conductor, Diffuse)):
+            layers = [layers]
+        self.layers = tuple(layers)
+        for i, layer in enumerate(self.layers):
+            if not isinstance(layer, (Dielectric, Conductor, Diffuse)):
+                raise TypeError(f"layers[{i}] must be a lamina.Dielectric, Conductor or Diffuse, got {type(layer).__name__}")
+        if not isinstance(ext_ior, Real):
+            raise TypeError(f"ext_ior must be a number, got {ext_ior!r}")
+        self.ext_ior = float(ext_ior)
+        _lamina.check_stack(self._resolve(None), self.ext_ior)
+
+    def __repr__(self) -> str:
+        return f"Stack({list(self.layers)!r}, ext_ior={self.ext_ior})"
+
+    def _resolve(self, wavelengths) -> list[dict]:
+        return [layer._resolve(wavelengths) for layer in self.layers]
+
+    def eval(self, wi, wo, model: str = "microfacet", *, wavelengths=None, distribution: str = "ggx",
+             g2: str = "height_correlated", fresnel: str = "exact") -> np.ndarray:
+        """The BRDF f(wi, wo), not multiplied by cos θo.
+
+        wi, wo: directions (..., 3) in the local frame (z = normal), both pointing away from the surface; they need
+        not be unit length and broadcast against each other. Directions below the horizon give 0.
+        Returns (..., 3) linear RGB channels, or (..., len(wavelengths)) with `wavelengths` (nm). float32 when both
+        inputs are float32, float64 otherwise. Units: 1/sr.
+        Options: `distribution` 'ggx' | 'beckmann'; `g2` 'height_correlated' (default) | 'separable' (Mitsuba 3) |
+        'v_cavity'; `fresnel` 'exact' | 'schlick' | 'lazanyi' (conductors)."""
+        wl = _wavelengths(wavelengths)
+        wi, wo = broadcast(wi=(wi, 3), wo=(wo, 3))
+        return _lamina.eval_stack(self._resolve(wl), self.ext_ior, model, wi, wo,
+                                  distribution=distribution, g2=g2, fresnel=fresnel)
+
+
+def _wavelengths(wavelengths):
+    if wavelengths is None:
+        return None
+    wl = np.atleast_1d(np.asarray(wavelengths, dtype=np.float64))
+    if wl.ndim != 1 or not np.all(np.isfinite(wl)) or np.any(wl <= 0):
+        raise ValueError(f"wavelengths must be a 1-D array of positive finite values in nm, got {wavelengths!r}")
+    return wl

@@ -1,0 +1,83 @@
+"""Shared fixtures: random directions and the Mitsuba 3 harness.
+
+Mitsuba's llvm_ad_* variants need a system libLLVM >= 15. The Makefile installs Debian's libllvm19 when running as
+root and points DRJIT_LIBLLVM_PATH at it; without it every Mitsuba comparison still runs, on scalar_* variants
+(slower, same checks), and the pytest header says which variant was used.
+"""
+
+from __future__ import annotations
+
+import glob
+import os
+import re
+
+import numpy as np
+import pytest
+
+if not os.environ.get("DRJIT_LIBLLVM_PATH"):
+    found = sorted(
+        (p for p in glob.glob("/usr/lib/*/libLLVM*.so*") if re.search(r"LLVM(-|\.so\.)(1[5-9]|[2-9]\d)", p)),
+        reverse=True,
+    )
+    if found:
+        os.environ["DRJIT_LIBLLVM_PATH"] = found[0]
+
+import drjit as dr  # noqa: E402
+import mitsuba as mi  # noqa: E402
+
+
+def _pick_rgb_variant() -> str:
+    try:
+        mi.set_variant("llvm_ad_rgb")
+        return "llvm_ad_rgb"
+    except Exception:  # libLLVM missing or too old: the scalar variant computes the same BSDFs
+        return "scalar_rgb"
+
+
+MI_RGB = _pick_rgb_variant()
+
+
+def pytest_report_header(config):
+    note = "" if MI_RGB.startswith("llvm") else " (no libLLVM >= 15 found: Mitsuba checks run on scalar_rgb)"
+    return f"mitsuba {mi.__version__}: RGB comparisons on {MI_RGB}{note}; DRJIT_LIBLLVM_PATH={os.environ.get('DRJIT_LIBLLVM_PATH')}"
+
+
+def unit(v: np.ndarray) -> np.ndarray:
+    return v / np.linalg.norm(v, axis=-1, keepdims=True)
+
+
+def random_hemisphere(rng: np.random.Generator, n: int, min_cos: float = 0.02) -> np.ndarray:
+    """n directions uniform on the upper hemisphere with cos θ >= min_cos."""
+    z = rng.uniform(min_cos, 1.0, n)
+    phi = rng.uniform(0.0, 2 * np.pi, n)
+    s = np.sqrt(1 - z * z)
+    return np.stack([s * np.cos(phi), s * np.sin(phi), z], axis=-1)
+
+
+def mitsuba_f(bsdf: dict, wi: np.ndarray, wo: np.ndarray, variant: str = MI_RGB, wavelengths=None) -> np.ndarray:
+    """f(wi, wo) of a Mitsuba 3 BSDF in lamina's convention (light arrives along wi, leaves along wo), shape (n, c).
+
+    Mitsuba works in radiance mode with si.wi the direction towards the camera (lamina's wo) and eval's wo towards
+    the light (lamina's wi); it returns f·|cos θ| of its wo, so we divide by |wi.z|."""
+    mi.set_variant(variant)
+    b = mi.load_dict(bsdf)
+    ctx = mi.BSDFContext()
+    if variant.startswith("llvm"):
+        si = dr.zeros(mi.SurfaceInteraction3f, len(wi))
+        si.wi = mi.Vector3f(np.ascontiguousarray(wo.T, dtype=np.float32))
+        value = np.array(b.eval(ctx, si, mi.Vector3f(np.ascontiguousarray(wi.T, dtype=np.float32)))).T
+    else:
+        rows = []
+        for a, o in zip(wi, wo):
+            si = dr.zeros(mi.SurfaceInteraction3f)
+            si.wi = mi.Vector3f(*map(float, o))
+            if wavelengths is not None:
+                si.wavelengths = mi.Spectrum(list(wavelengths))
+            rows.append(np.array(b.eval(ctx, si, mi.Vector3f(*map(float, a)))).ravel())
+        value = np.array(rows)
+    return value.astype(np.float64) / np.abs(wi[:, 2:3])
+
+
+@pytest.fixture
+def rng():
+    return np.random.default_rng(20261122)
