@@ -3,13 +3,14 @@
 //! while the GIL is released. No Rust panic crosses this boundary: bad input becomes ValueError / TypeError.
 
 use crate::bsdf;
-use crate::models::{Model, Options, MODELS};
+use crate::models::{self, Options, MODELS};
 use crate::optics::fresnel::{self, FresnelForm};
 use crate::optics::microfacet::{Distribution, G2Form, Microfacet};
 use crate::stack::{Error, Layer, Stack};
 use glam::DVec3;
-use numpy::ndarray::{ArrayD, IxDyn};
-use numpy::{IntoPyArray, PyReadonlyArrayDyn, PyUntypedArrayMethods};
+use numpy::ndarray::IxDyn;
+use numpy::{PyArrayDyn, PyArrayMethods, PyReadonlyArrayDyn, PyUntypedArrayMethods};
+use std::sync::atomic::{AtomicUsize, Ordering};
 use pyo3::exceptions::{PyTypeError, PyValueError};
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyList};
@@ -21,86 +22,181 @@ impl From<Error> for PyErr {
     }
 }
 
-/// How an input array is checked: a direction (3-vector, non-zero, normalised here) or plain values.
+/// How an input array is checked: a direction (3-vector, finite, non-zero, normalised here) or finite values.
 #[derive(Clone, Copy, PartialEq)]
 enum Kind {
     Direction,
     Values(usize),
 }
 
-struct Input {
-    batch: Vec<usize>,
-    data: Vec<f64>,
-    is_f32: bool,
-}
-
-fn gather(name: &str, obj: &Bound<'_, PyAny>, kind: Kind) -> PyResult<Input> {
-    let k = match kind {
-        Kind::Direction => 3,
-        Kind::Values(k) => k,
-    };
-    let (shape, mut data, is_f32) = if let Ok(a) = obj.extract::<PyReadonlyArrayDyn<'_, f64>>() {
-        (a.shape().to_vec(), a.as_array().iter().copied().collect::<Vec<f64>>(), false)
-    } else if let Ok(a) = obj.extract::<PyReadonlyArrayDyn<'_, f32>>() {
-        (a.shape().to_vec(), a.as_array().iter().map(|&x| x as f64).collect(), true)
-    } else {
-        return Err(PyTypeError::new_err(format!("{name} must be a float32 or float64 array")));
-    };
-    if shape.last() != Some(&k) {
-        return Err(PyValueError::new_err(format!("{name} must have shape (..., {k}), got {shape:?}")));
-    }
-    if let Some(i) = data.iter().position(|x| !x.is_finite()) {
-        return Err(PyValueError::new_err(format!("{name} contains NaN or Inf (flat index {i})")));
-    }
-    if kind == Kind::Direction {
-        for (i, row) in data.chunks_exact_mut(3).enumerate() {
-            let len = (row[0] * row[0] + row[1] * row[1] + row[2] * row[2]).sqrt();
-            if len == 0.0 {
-                return Err(PyValueError::new_err(format!("{name} contains a zero-length direction (row {i})")));
-            }
-            row.iter_mut().for_each(|x| *x /= len);
+impl Kind {
+    fn width(self) -> usize {
+        match self {
+            Kind::Direction => 3,
+            Kind::Values(k) => k,
         }
     }
-    Ok(Input { batch: shape[..shape.len() - 1].to_vec(), data, is_f32 })
 }
 
-/// Evaluates `kernel` on every row of the (already broadcast) inputs, in parallel without the GIL, and returns
-/// an array of shape batch + (out_k,): float32 when every input was float32, float64 otherwise.
+/// The elements of one input array in logical (C) order: NumPy's own memory when it is contiguous, else a copy.
+enum Data<'a> {
+    F64(&'a [f64]),
+    F32(&'a [f32]),
+    Copied(Vec<f64>),
+}
+
+impl Data<'_> {
+    #[inline]
+    fn get(&self, i: usize) -> f64 {
+        match self {
+            Data::F64(s) => s[i],
+            Data::F32(s) => s[i] as f64,
+            Data::Copied(v) => v[i],
+        }
+    }
+}
+
+/// Widest row a kernel reads from one input (directions: 3).
+const MAX_WIDTH: usize = 3;
+/// The most arrays a kernel takes.
+const MAX_INPUTS: usize = 4;
+type Row = [f64; MAX_WIDTH];
+
+/// Why an input row was rejected: the input's position and the flat row index (smallest wins).
+const NO_ERROR: usize = usize::MAX;
+
+/// Evaluates `kernel` on every row of the (already broadcast) inputs, in parallel with the GIL released, writing
+/// straight into a new NumPy array of shape batch + (out_k,): float32 when every input is float32, else float64.
+/// Rows are validated on the way (NaN/Inf, zero-length directions) and the first bad one raises ValueError.
 fn batch<'py>(
     py: Python<'py>,
     inputs: &[(&str, &Bound<'py, PyAny>, Kind)],
     out_k: usize,
-    kernel: impl Fn(&[&[f64]], &mut [f64]) + Sync,
+    kernel: impl Fn(&[Row], &mut [f64]) + Sync,
 ) -> PyResult<Bound<'py, PyAny>> {
-    let gathered = inputs.iter().map(|(n, o, k)| gather(n, o, *k)).collect::<PyResult<Vec<_>>>()?;
-    let batch_shape = gathered[0].batch.clone();
-    if let Some(other) = gathered.iter().position(|g| g.batch != batch_shape) {
-        return Err(PyValueError::new_err(format!(
-            "{} has batch shape {:?}, which does not match {}'s {:?}",
-            inputs[other].0, gathered[other].batch, inputs[0].0, batch_shape
-        )));
+    assert!(inputs.len() <= MAX_INPUTS && out_k > 0);
+    let (mut f64s, mut f32s) = (Vec::new(), Vec::new());
+    let mut shapes = Vec::new();
+    for (name, obj, kind) in inputs {
+        if let Ok(a) = obj.extract::<PyReadonlyArrayDyn<'py, f64>>() {
+            shapes.push(a.shape().to_vec());
+            f64s.push(a);
+        } else if let Ok(a) = obj.extract::<PyReadonlyArrayDyn<'py, f32>>() {
+            shapes.push(a.shape().to_vec());
+            f32s.push(a);
+        } else {
+            return Err(PyTypeError::new_err(format!("{name} must be a float32 or float64 array")));
+        }
+        let shape = shapes.last().unwrap();
+        if shape.last() != Some(&kind.width()) {
+            return Err(PyValueError::new_err(format!("{name} must have shape (..., {}), got {shape:?}", kind.width())));
+        }
     }
-    let n: usize = batch_shape.iter().product();
-    let widths: Vec<usize> = inputs.iter().map(|(_, _, k)| if let Kind::Values(k) = k { *k } else { 3 }).collect();
-    let mut out = vec![0.0f64; n * out_k];
-    py.detach(|| {
-        out.par_chunks_mut(out_k.max(1)).enumerate().with_min_len(512).for_each(|(i, o)| {
-            let rows: Vec<&[f64]> = gathered.iter().zip(&widths).map(|(g, &w)| &g.data[i * w..(i + 1) * w]).collect();
-            kernel(&rows, o);
+    let batch_shape = shapes[0][..shapes[0].len() - 1].to_vec();
+    for (i, s) in shapes.iter().enumerate() {
+        if s[..s.len() - 1] != batch_shape[..] {
+            return Err(PyValueError::new_err(format!(
+                "{} has batch shape {:?}, which does not match {}'s {:?}",
+                inputs[i].0, &s[..s.len() - 1], inputs[0].0, batch_shape
+            )));
+        }
+    }
+    // Borrow contiguous NumPy memory; copy only strided inputs.
+    let (mut it64, mut it32) = (f64s.iter(), f32s.iter());
+    let data: Vec<Data> = inputs
+        .iter()
+        .map(|(_, obj, _)| {
+            if obj.extract::<PyReadonlyArrayDyn<'py, f64>>().is_ok() {
+                let a = it64.next().unwrap();
+                a.as_slice().map(Data::F64).unwrap_or_else(|_| Data::Copied(a.as_array().iter().copied().collect()))
+            } else {
+                let a = it32.next().unwrap();
+                a.as_slice()
+                    .map(Data::F32)
+                    .unwrap_or_else(|_| Data::Copied(a.as_array().iter().map(|&x| x as f64).collect()))
+            }
         })
-    });
+        .collect();
+    let kinds: Vec<Kind> = inputs.iter().map(|(_, _, k)| *k).collect();
+    let n: usize = batch_shape.iter().product();
     let mut shape = batch_shape;
     shape.push(out_k);
-    let all_f32 = gathered.iter().all(|g| g.is_f32);
-    let array = ArrayD::from_shape_vec(IxDyn(&shape), out).expect("shape matches length");
-    Ok(if all_f32 {
-        array.mapv(|x| x as f32).into_pyarray(py).into_any()
+    let first_bad = AtomicUsize::new(NO_ERROR);
+    let run = |out: &mut dyn FnMut(&(dyn Fn(usize, &mut [f64]) + Sync))| {
+        out(&|i, o: &mut [f64]| {
+            let mut rows = [[0.0; MAX_WIDTH]; MAX_INPUTS];
+            for (j, (d, kind)) in data.iter().zip(&kinds).enumerate() {
+                let w = kind.width();
+                let row = &mut rows[j];
+                for c in 0..w {
+                    row[c] = d.get(i * w + c);
+                }
+                let finite = row[..w].iter().all(|x| x.is_finite());
+                let len = (row[0] * row[0] + row[1] * row[1] + row[2] * row[2]).sqrt();
+                if !finite || (*kind == Kind::Direction && len == 0.0) {
+                    first_bad.fetch_min(i * MAX_INPUTS + j, Ordering::Relaxed);
+                    return;
+                }
+                if *kind == Kind::Direction {
+                    let inv = 1.0 / len;
+                    row.iter_mut().for_each(|x| *x *= inv);
+                }
+            }
+            kernel(&rows[..data.len()], o);
+        })
+    };
+    let result = if f64s.is_empty() {
+        let array = unsafe { PyArrayDyn::<f32>::new(py, IxDyn(&shape), false) };
+        let slice = unsafe { array.as_slice_mut() }.expect("new arrays are contiguous");
+        py.detach(|| run(&mut |f| fill(slice, out_k, f)));
+        array.into_any()
     } else {
-        array.into_pyarray(py).into_any()
-    })
+        let array = unsafe { PyArrayDyn::<f64>::new(py, IxDyn(&shape), false) };
+        let slice = unsafe { array.as_slice_mut() }.expect("new arrays are contiguous");
+        py.detach(|| run(&mut |f| fill(slice, out_k, f)));
+        array.into_any()
+    };
+    let bad = first_bad.into_inner();
+    if bad != NO_ERROR {
+        let (row, j) = (bad / MAX_INPUTS, bad % MAX_INPUTS);
+        let what = if kinds[j] == Kind::Direction { "NaN, Inf or a zero-length direction" } else { "NaN or Inf" };
+        return Err(PyValueError::new_err(format!("{} contains {what} (row {row} of {n})", inputs[j].0)));
+    }
+    Ok(result)
 }
 
-fn vec3(row: &[f64]) -> DVec3 {
+/// Output element types.
+trait OutElement: Copy + Send + Sync {
+    fn from_f64(x: f64) -> Self;
+}
+
+impl OutElement for f64 {
+    fn from_f64(x: f64) -> Self {
+        x
+    }
+}
+
+impl OutElement for f32 {
+    fn from_f64(x: f64) -> Self {
+        x as f32
+    }
+}
+
+/// Fills `out` (rows of `out_k`) in parallel, evaluating `f(row, scratch)` in f64 and storing as T.
+fn fill<T: OutElement>(out: &mut [T], out_k: usize, f: &(dyn Fn(usize, &mut [f64]) + Sync)) {
+    out.par_chunks_mut(out_k).enumerate().with_min_len(1024).for_each_init(
+        || vec![0.0f64; out_k],
+        |scratch, (i, o)| {
+            scratch.fill(0.0);
+            f(i, scratch);
+            for (dst, &src) in o.iter_mut().zip(scratch.iter()) {
+                *dst = T::from_f64(src);
+            }
+        },
+    );
+}
+
+fn vec3(row: &Row) -> DVec3 {
     DVec3::new(row[0], row[1], row[2])
 }
 
@@ -172,7 +268,7 @@ fn parse_stack(layers: &Bound<'_, PyList>, ext_ior: f64) -> PyResult<Stack> {
 fn check_stack(layers: &Bound<'_, PyList>, ext_ior: f64, model: Option<&str>) -> PyResult<usize> {
     let stack = parse_stack(layers, ext_ior)?;
     if let Some(m) = model {
-        Model::parse(m)?.check(&stack)?;
+        models::prepare(m, &stack, &Options::default())?;
     }
     Ok(stack.channels)
 }
@@ -193,11 +289,10 @@ fn eval_stack<'py>(
     fresnel: &str,
 ) -> PyResult<Bound<'py, PyAny>> {
     let stack = parse_stack(layers, ext_ior)?;
-    let model = Model::parse(model)?;
-    model.check(&stack)?;
     let opts = Options { distribution: parse_distribution(distribution)?, g2: parse_g2(g2)?, fresnel: parse_fresnel(fresnel)? };
+    let model = models::prepare(model, &stack, &opts)?;
     batch(py, &[("wi", wi, Kind::Direction), ("wo", wo, Kind::Direction)], stack.channels, |r, o| {
-        model.eval(&stack, &opts, vec3(r[0]), vec3(r[1]), o)
+        model.eval(vec3(&r[0]), vec3(&r[1]), o)
     })
 }
 
@@ -251,7 +346,7 @@ fn fresnel_diffuse_reflectance<'py>(py: Python<'py>, eta: &Bound<'py, PyAny>) ->
 fn microfacet(alpha_x: f64, alpha_y: f64, angle: f64, distribution: &str) -> PyResult<Microfacet> {
     for (name, a) in [("alpha_x", alpha_x), ("alpha_y", alpha_y)] {
         if !(a > 0.0 && a <= 1.0) {
-            return Err(PyValueError::new_err(format!("{name} must be in (0, 1], got {a}")));
+            return Err(PyValueError::new_err(format!("{name} (roughness) must be in (0, 1], got {a}")));
         }
     }
     if !angle.is_finite() {
@@ -263,13 +358,13 @@ fn microfacet(alpha_x: f64, alpha_y: f64, angle: f64, distribution: &str) -> PyR
 #[pyfunction]
 fn microfacet_d<'py>(py: Python<'py>, m: &Bound<'py, PyAny>, alpha_x: f64, alpha_y: f64, angle: f64, distribution: &str) -> PyResult<Bound<'py, PyAny>> {
     let mf = microfacet(alpha_x, alpha_y, angle, distribution)?;
-    batch(py, &[("m", m, Kind::Direction)], 1, |r, o| o[0] = mf.d(vec3(r[0])))
+    batch(py, &[("m", m, Kind::Direction)], 1, |r, o| o[0] = mf.d(vec3(&r[0])))
 }
 
 #[pyfunction]
 fn microfacet_lambda<'py>(py: Python<'py>, w: &Bound<'py, PyAny>, alpha_x: f64, alpha_y: f64, angle: f64, distribution: &str) -> PyResult<Bound<'py, PyAny>> {
     let mf = microfacet(alpha_x, alpha_y, angle, distribution)?;
-    batch(py, &[("w", w, Kind::Direction)], 1, |r, o| o[0] = mf.lambda(vec3(r[0])))
+    batch(py, &[("w", w, Kind::Direction)], 1, |r, o| o[0] = mf.lambda(vec3(&r[0])))
 }
 
 #[pyfunction]
@@ -287,14 +382,14 @@ fn microfacet_g2<'py>(
 ) -> PyResult<Bound<'py, PyAny>> {
     let (mf, form) = (microfacet(alpha_x, alpha_y, angle, distribution)?, parse_g2(g2)?);
     let inputs = [("wi", wi, Kind::Direction), ("wo", wo, Kind::Direction), ("m", m, Kind::Direction)];
-    batch(py, &inputs, 1, |r, o| o[0] = mf.g2(form, vec3(r[0]), vec3(r[1]), vec3(r[2])))
+    batch(py, &inputs, 1, |r, o| o[0] = mf.g2(form, vec3(&r[0]), vec3(&r[1]), vec3(&r[2])))
 }
 
 #[pyfunction]
 fn sample_visible<'py>(py: Python<'py>, wi: &Bound<'py, PyAny>, u: &Bound<'py, PyAny>, alpha_x: f64, alpha_y: f64, angle: f64, distribution: &str) -> PyResult<Bound<'py, PyAny>> {
     let mf = microfacet(alpha_x, alpha_y, angle, distribution)?;
     batch(py, &[("wi", wi, Kind::Direction), ("u", u, Kind::Values(2))], 3, |r, o| {
-        let wi = vec3(r[0]);
+        let wi = vec3(&r[0]);
         if wi.z > 0.0 {
             o.copy_from_slice(&mf.sample_visible(wi, r[1][0].clamp(0.0, 1.0), r[1][1].clamp(0.0, 1.0)).to_array());
         }
@@ -305,7 +400,7 @@ fn sample_visible<'py>(py: Python<'py>, wi: &Bound<'py, PyAny>, u: &Bound<'py, P
 fn pdf_visible<'py>(py: Python<'py>, wi: &Bound<'py, PyAny>, m: &Bound<'py, PyAny>, alpha_x: f64, alpha_y: f64, angle: f64, distribution: &str) -> PyResult<Bound<'py, PyAny>> {
     let mf = microfacet(alpha_x, alpha_y, angle, distribution)?;
     batch(py, &[("wi", wi, Kind::Direction), ("m", m, Kind::Direction)], 1, |r, o| {
-        o[0] = mf.pdf_visible(vec3(r[0]), vec3(r[1]))
+        o[0] = mf.pdf_visible(vec3(&r[0]), vec3(&r[1]))
     })
 }
 
@@ -341,7 +436,7 @@ fn interface_bsdf<'py>(
         _ => return Err(PyValueError::new_err(format!("kind must be 'conductor' or 'dielectric', got {kind:?}"))),
     };
     batch(py, &[("wi", wi, Kind::Direction), ("wo", wo, Kind::Direction)], eta.len(), |r, o| {
-        let (wi, wo) = (vec3(r[0]), vec3(r[1]));
+        let (wi, wo) = (vec3(&r[0]), vec3(&r[1]));
         for (c, out) in o.iter_mut().enumerate() {
             *out = if conductor {
                 bsdf::rough_conductor(&mf, form, eta[c], k[c], wi, wo)

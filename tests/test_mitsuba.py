@@ -109,7 +109,6 @@ def test_roughdielectric(rng, distribution, eta, alpha, case):
     ref = mitsuba_f({"type": "roughdielectric", "distribution": distribution, "alpha": alpha,
                      "int_ior": eta, "ext_ior": 1.0}, wi, wo)[:, 0]
     assert np.count_nonzero(ref) >= 150, "the sample must exercise the lobe"
-    assert np.count_nonzero(ours) == np.count_nonzero(ref)
     assert_close(ours, ref, RTOL_SAME_FORMULA if distribution == "ggx" else RTOL_BECKMANN_G1)
 
 

@@ -1,5 +1,6 @@
-//! The BRDF models behind `Stack.eval(model=...)`. Each model is a pure function of the stack, its options and
-//! one pair of directions; it writes one value per channel.
+//! The BRDF models behind `Stack.eval(model=...)`. A model is prepared once per call from the stack and its
+//! options (per-channel constants, distributions, tables), then evaluated for many direction pairs; each
+//! evaluation writes one value per channel.
 
 pub mod microfacet;
 
@@ -24,30 +25,24 @@ impl Default for Options {
     }
 }
 
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum Model {
-    Microfacet,
+/// A model prepared for one stack: evaluates f(wi, wo) for unit directions in the local frame.
+pub enum Evaluator {
+    Microfacet(microfacet::Prepared),
 }
 
-impl Model {
-    pub fn parse(name: &str) -> Result<Model> {
-        match name {
-            "microfacet" => Ok(Model::Microfacet),
-            _ => value_error(format!("model must be one of {MODELS:?}, got {name:?}")),
-        }
+/// Prepares `model` for `stack`, or explains why the model cannot represent the stack.
+pub fn prepare(model: &str, stack: &Stack, opts: &Options) -> Result<Evaluator> {
+    match model {
+        "microfacet" => Ok(Evaluator::Microfacet(microfacet::prepare(stack, opts)?)),
+        _ => value_error(format!("model must be one of {MODELS:?}, got {model:?}")),
     }
+}
 
-    /// Rejects stacks the model cannot represent, with a message naming the reason.
-    pub fn check(self, stack: &Stack) -> Result<()> {
+impl Evaluator {
+    /// f(wi, wo) for every channel into `out` (length = number of channels).
+    pub fn eval(&self, wi: DVec3, wo: DVec3, out: &mut [f64]) {
         match self {
-            Model::Microfacet => microfacet::check(stack),
-        }
-    }
-
-    /// f(wi, wo) for every channel into `out` (length = stack.channels). Unit directions, local frame.
-    pub fn eval(self, stack: &Stack, opts: &Options, wi: DVec3, wo: DVec3, out: &mut [f64]) {
-        match self {
-            Model::Microfacet => microfacet::eval(stack, opts, wi, wo, out),
+            Evaluator::Microfacet(p) => p.eval(wi, wo, out),
         }
     }
 }

@@ -15,8 +15,16 @@ pub fn lambert(albedo: f64, wi: DVec3, wo: DVec3) -> f64 {
 /// ρ/π [A + B max(0, cos(φi − φo)) sin α tan β], α = max(θi, θo), β = min(θi, θo),
 /// A = 1 − 0.5σ²/(σ² + 0.33), B = 0.45σ²/(σ² + 0.09); σ is the facet-slope standard deviation in radians.
 pub fn oren_nayar(albedo: f64, sigma: f64, wi: DVec3, wo: DVec3) -> f64 {
+    albedo * oren_nayar_shape(sigma, wi, wo)
+}
+
+/// The Oren–Nayar BRDF per unit albedo, f/ρ (shared by all colour channels).
+pub fn oren_nayar_shape(sigma: f64, wi: DVec3, wo: DVec3) -> f64 {
     if wi.z <= 0.0 || wo.z <= 0.0 {
         return 0.0;
+    }
+    if sigma == 0.0 {
+        return FRAC_1_PI;
     }
     let s2 = sigma * sigma;
     let a = 1.0 - 0.5 * s2 / (s2 + 0.33);
@@ -30,7 +38,7 @@ pub fn oren_nayar(albedo: f64, sigma: f64, wi: DVec3, wo: DVec3) -> f64 {
     };
     // sin α tan β with α the larger zenith angle, β the smaller one.
     let sin_alpha_tan_beta = if wi.z > wo.z { sin_o * sin_i / wi.z } else { sin_i * sin_o / wo.z };
-    albedo * FRAC_1_PI * (a + b * cos_dphi.max(0.0) * sin_alpha_tan_beta)
+    FRAC_1_PI * (a + b * cos_dphi.max(0.0) * sin_alpha_tan_beta)
 }
 
 #[cfg(test)]

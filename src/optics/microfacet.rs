@@ -17,21 +17,36 @@ pub struct Microfacet {
     pub dist: Distribution,
     pub alpha_x: f64,
     pub alpha_y: f64,
+    smooth: bool,
     cos_phi: f64,
     sin_phi: f64,
 }
 
+/// Smallest roughness evaluated as a microfacet lobe (as in Mitsuba 3); (0, 0) is a smooth Dirac interface.
+pub const MIN_ALPHA: f64 = 1e-4;
+
 impl Microfacet {
     pub fn new(dist: Distribution, alpha_x: f64, alpha_y: f64, angle: f64) -> Self {
-        Self { dist, alpha_x, alpha_y, cos_phi: angle.cos(), sin_phi: angle.sin() }
+        Self {
+            dist,
+            alpha_x: alpha_x.max(MIN_ALPHA),
+            alpha_y: alpha_y.max(MIN_ALPHA),
+            smooth: alpha_x == 0.0 && alpha_y == 0.0,
+            cos_phi: angle.cos(),
+            sin_phi: angle.sin(),
+        }
     }
 
-    /// True when both roughnesses are zero: the interface is a perfectly smooth (Dirac) one.
+    /// True when both roughnesses are zero: the interface is a perfectly smooth (Dirac) one, whose reflection and
+    /// refraction are delta lobes that a BSDF evaluation does not return.
     pub fn is_smooth(&self) -> bool {
-        self.alpha_x == 0.0 && self.alpha_y == 0.0
+        self.smooth
     }
 
     fn local(&self, w: DVec3) -> DVec3 {
+        if self.sin_phi == 0.0 && self.cos_phi == 1.0 {
+            return w;
+        }
         to_tangent_frame(w, self.cos_phi, self.sin_phi)
     }
 
