@@ -62,7 +62,8 @@ const MAX_WIDTH: usize = 3;
 const MAX_INPUTS: usize = 4;
 type Row = [f64; MAX_WIDTH];
 
-/// Why an input row was rejected: the input's position and the flat row index (smallest wins).
+/// No input row was rejected. A rejection is encoded as (row · MAX_INPUTS + input) · 2 + reason, reason 0 for
+/// NaN/Inf and 1 for a zero-length direction, so that the smallest code is the first bad row.
 const NO_ERROR: usize = usize::MAX;
 
 /// Evaluates `kernel` on every row of the (already broadcast) inputs, in parallel with the GIL released, writing
@@ -108,12 +109,16 @@ fn batch<'py>(
         .map(|(_, obj, _)| {
             if obj.extract::<PyReadonlyArrayDyn<'py, f64>>().is_ok() {
                 let a = it64.next().unwrap();
-                a.as_slice().map(Data::F64).unwrap_or_else(|_| Data::Copied(a.as_array().iter().copied().collect()))
+                match a.as_slice() {
+                    Ok(s) if a.is_c_contiguous() => Data::F64(s),
+                    _ => Data::Copied(a.as_array().iter().copied().collect()),
+                }
             } else {
                 let a = it32.next().unwrap();
-                a.as_slice()
-                    .map(Data::F32)
-                    .unwrap_or_else(|_| Data::Copied(a.as_array().iter().map(|&x| x as f64).collect()))
+                match a.as_slice() {
+                    Ok(s) if a.is_c_contiguous() => Data::F32(s),
+                    _ => Data::Copied(a.as_array().iter().map(|&x| x as f64).collect()),
+                }
             }
         })
         .collect();
@@ -134,7 +139,7 @@ fn batch<'py>(
                 let finite = row[..w].iter().all(|x| x.is_finite());
                 let len = (row[0] * row[0] + row[1] * row[1] + row[2] * row[2]).sqrt();
                 if !finite || (*kind == Kind::Direction && len == 0.0) {
-                    first_bad.fetch_min(i * MAX_INPUTS + j, Ordering::Relaxed);
+                    first_bad.fetch_min((i * MAX_INPUTS + j) * 2 + finite as usize, Ordering::Relaxed);
                     return;
                 }
                 if *kind == Kind::Direction {
@@ -158,8 +163,8 @@ fn batch<'py>(
     };
     let bad = first_bad.into_inner();
     if bad != NO_ERROR {
-        let (row, j) = (bad / MAX_INPUTS, bad % MAX_INPUTS);
-        let what = if kinds[j] == Kind::Direction { "NaN, Inf or a zero-length direction" } else { "NaN or Inf" };
+        let (row, j, zero_length) = (bad / 2 / MAX_INPUTS, bad / 2 % MAX_INPUTS, bad % 2 == 1);
+        let what = if zero_length { "a zero-length direction" } else { "NaN or Inf" };
         return Err(PyValueError::new_err(format!("{} contains {what} (row {row} of {n})", inputs[j].0)));
     }
     Ok(result)

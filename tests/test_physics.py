@@ -104,7 +104,7 @@ def test_rough_conductor_albedo_at_most_one(alpha, angle, theta, distribution, g
     w[ok] = f * wo[ok, 2] * 4 * (m[ok] @ wi) / pdf_m[ok]
     mean, se = w.mean(), w.std(ddof=1) / np.sqrt(len(w))
     assert np.all(np.isfinite(w))
-    assert mean <= 1 + 4 * se, f"albedo {mean} ± {se}"
+    assert mean <= 1 + 4 * se + 1e-12, f"albedo {mean} ± {se}"  # 1e-12: f64 rounding when every sample is ~1
 
 
 @settings(max_examples=25, deadline=None)
@@ -133,7 +133,7 @@ def test_rough_dielectric_energy_at_most_one(alpha, theta, eta, distribution, g2
     total[t_ok] += f_t[t_ok] * np.abs(wt[t_ok, 2]) / (pdf_m[t_ok] * jac[t_ok])
     mean, se = total.mean(), total.std(ddof=1) / np.sqrt(len(total))
     assert np.all(np.isfinite(total))
-    assert mean <= 1 + 4 * se, f"R + T = {mean} ± {se}"
+    assert mean <= 1 + 4 * se + 1e-12, f"R + T = {mean} ± {se}"  # 1e-12: f64 rounding when every sample is ~1
 
 
 def test_lambert_albedo_and_oren_nayar_energy():
