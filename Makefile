@@ -7,7 +7,7 @@ VPY := $(VENV)/bin/python
 # the tests fall back to the scalar_* variants without it and say so.
 LLVM := DRJIT_LIBLLVM_PATH="$$(ls /usr/lib/*/libLLVM-19.so /usr/lib/*/libLLVM-1[5-9].so /usr/lib/*/libLLVM.so.1[5-9]* 2>/dev/null | head -1)"
 
-.PHONY: demo test develop venv test-deps system-deps rust-test py-test bench clean
+.PHONY: demo test develop venv test-deps system-deps rust-test py-test bench validation clean
 
 $(VPY):
 	$(PY) -m venv $(VENV)
@@ -45,6 +45,10 @@ test: rust-test py-test
 
 bench: develop test-deps
 	$(LLVM) $(VPY) benchmarks/bench_conductor.py
+
+# Regenerates docs/validation.md from measurements against Mitsuba 3 and colour-science.
+validation: develop test-deps
+	$(LLVM) $(VPY) scripts/validation_report.py
 
 clean:
 	rm -rf $(VENV) target out

@@ -33,7 +33,7 @@ def brdf_slices(stack: Stack, thetas_i_deg=(0, 30, 60, 80), model: str = "microf
         for c, colour in enumerate(("tab:red", "tab:green", "tab:blue")):
             ax.semilogy(theta_o, np.maximum(f[:, c], 1e-6), color=colour, lw=1.2)
         ax.axvline(ti, color="0.6", lw=0.8, ls=":")
-        ax.set_title(f"θi = {ti}°")
+        ax.set_title(f"θi = {ti:g}°")
         ax.set_xlabel("θo (°), plane of incidence")
         ax.set_xlim(-90, 90)
         ax.grid(True, which="both", alpha=0.25)

@@ -1,0 +1,168 @@
+"""Writes docs/validation.md: lamina's measured agreement with Mitsuba 3 and colour-science, and the single-scattering
+energy of its microfacet interfaces. Every number is computed here; nothing is typed by hand.
+
+Run: make validation   (uses the test harness in tests/conftest.py; needs the test dependencies)
+"""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT / "tests"))
+
+import lamina  # noqa: E402
+from conftest import MI_RGB, mitsuba_f, random_hemisphere, unit  # noqa: E402
+from test_mitsuba import near_lobe_pairs, refract  # noqa: E402
+
+import colour  # noqa: E402
+import mitsuba as mi  # noqa: E402
+
+
+def rel_err(ours, ref):
+    scale = np.maximum(np.abs(ref), 1e-6 * np.abs(ref).max())
+    e = np.abs(ours - ref) / scale
+    return float(np.max(e)), float(np.median(e))
+
+
+def rgb(v):
+    return {"type": "rgb", "value": [float(x) for x in v]}
+
+
+def mitsuba_rows(rng):
+    rows = []
+    for dist in ("ggx", "beckmann"):
+        for rough in (0.05, 0.3, (0.1, 0.4)):
+            for metal in ("Au", "Cu", "Al", "Cr"):
+                eta, k = (np.asarray(x) for x in lamina.materials.elek2010_rgb(metal))
+                ax, ay = lamina.layers._roughness(rough)
+                wi, wo = near_lobe_pairs(rng, 2000, 2 * max(ax, ay))
+                ours = lamina.optics.rough_conductor(wi, wo, eta, k, rough, distribution=dist, g2="separable")
+                ref = mitsuba_f({"type": "roughconductor", "distribution": dist, "alpha_u": ax, "alpha_v": ay,
+                                 "eta": rgb(eta), "k": rgb(k)}, wi, wo)
+                rows.append((f"roughconductor {dist} α={rough} {metal}", len(wi), *rel_err(ours, ref),
+                             "1e-4" if dist == "ggx" else "7e-3 (Mitsuba's Beckmann G1 fit)"))
+    for dist in ("ggx", "beckmann"):
+        for case in ("reflect outside", "reflect inside", "transmit from outside", "transmit from inside"):
+            eta, alpha = 1.5, 0.3
+            wi = random_hemisphere(rng, 4000, 0.05)
+            m = unit(np.array([0, 0, 1.0]) + 2 * alpha * rng.normal(size=wi.shape) * [1, 1, 0])
+            if case.startswith("reflect"):
+                wo = 2 * np.sum(wi * m, -1, keepdims=True) * m - wi
+                ok = wo[:, 2] > 0.02
+            else:
+                wo = refract(wi, m, eta if case.endswith("outside") else 1 / eta)
+                ok = np.all(np.isfinite(wo), -1) & (wo[:, 2] < -0.02)
+            wi, wo = wi[ok], wo[ok]
+            if case.endswith("inside"):
+                wi, wo = -wi, -wo
+            note = "1e-4" if dist == "ggx" else "7e-3"
+            if case.startswith("transmit"):
+                ei, eo = (1.0, eta) if wi[0, 2] > 0 else (eta, 1.0)
+                h = unit(-(ei * wi + eo * wo))
+                ok = np.minimum(np.abs(np.sum(wi * h, -1)), np.abs(np.sum(wo * h, -1))) > 0.05
+                wi, wo = wi[ok], wo[ok]
+                note += ", |w·h| > 0.05 (Mitsuba float32 conditioning)"
+            ours = lamina.optics.rough_dielectric(wi, wo, [eta], alpha, distribution=dist, g2="separable")
+            ref = mitsuba_f({"type": "roughdielectric", "distribution": dist, "alpha": alpha, "int_ior": eta,
+                             "ext_ior": 1.0}, wi, wo)[:, :1]
+            rows.append((f"roughdielectric {dist} α=0.3 η=1.5 {case}", len(wi), *rel_err(ours, ref), note))
+    wi, wo = random_hemisphere(rng, 2000), random_hemisphere(rng, 2000)
+    ours = lamina.Stack([lamina.Diffuse((0.8, 0.35, 0.05))]).eval(wi, wo)
+    rows.append(("diffuse", len(wi), *rel_err(ours, mitsuba_f({"type": "diffuse", "reflectance": rgb((0.8, 0.35, 0.05))}, wi, wo)), "1e-4"))
+    for eta in (1.33, 1.5, 2.0):
+        albedo = np.array([0.9, 0.5, 0.1])
+        ours = lamina.materials.plastic(albedo, ior=eta).eval(wi, wo)
+        ref = mitsuba_f({"type": "plastic", "int_ior": eta, "ext_ior": 1.0, "nonlinear": True,
+                         "diffuse_reflectance": rgb(albedo)}, wi, wo)
+        rows.append((f"plastic nonlinear η={eta} (as is)", len(wi), *rel_err(ours, ref), "— (F̄_int differs)"))
+        mi.set_variant("scalar_rgb")
+        f_mi = float(mi.fresnel_diffuse_reflectance(1 / eta))
+        f_us = float(lamina.optics.fresnel_diffuse_reflectance(1 / eta))
+        rows.append((f"plastic nonlinear η={eta}, Mitsuba's F̄_int substituted", len(wi),
+                     *rel_err(ours * (1 - albedo * f_us) / (1 - albedo * f_mi), ref), "1e-4"))
+    return rows
+
+
+def fdr_rows():
+    mi.set_variant("scalar_rgb")
+    rows = []
+    for eta in (1.1, 1.33, 1.5, 2.0, 2.5):
+        ours = float(lamina.optics.fresnel_diffuse_reflectance(1 / eta))
+        theirs = float(mi.fresnel_diffuse_reflectance(1 / eta))
+        rows.append((eta, ours, theirs, theirs - ours))
+    return rows
+
+
+def colour_rows():
+    wl = np.arange(360.0, 831.0, 1.0)
+    cmfs = colour.MSDS_CMFS["CIE 1931 2 Degree Standard Observer"]
+    rows = []
+    for metal in ("Au", "Cu", "Ag", "Al", "Cr", "Cu2O"):
+        n, k = lamina.spectrum.ior(metal)
+        refl = lamina.optics.fresnel_conductor(np.full_like(wl, 1.0), n(wl), k(wl))
+        ours = lamina.to_xyz(wl, refl)
+        sd = colour.SpectralDistribution(dict(zip(wl, refl)))
+        ref = colour.sd_to_XYZ(sd, cmfs, colour.SDS_ILLUMINANTS["D65"], method="Integration") / 100
+        srgb = lamina.to_srgb(wl, refl)
+        rows.append((metal, ours, float(np.max(np.abs(ours - ref))), srgb,
+                     float(np.max(np.abs(srgb - colour.XYZ_to_sRGB(ref, apply_cctf_encoding=False))))))
+    return rows
+
+
+def energy_table(rng, distribution):
+    """Single-scattering directional albedo of a white (F = 1) microfacet mirror, E[G2/G1] under VNDF sampling."""
+    alphas, thetas = (0.1, 0.3, 0.5, 0.8, 1.0), (0, 30, 60, 80, 87)
+    table = np.zeros((len(alphas), len(thetas)))
+    for i, a in enumerate(alphas):
+        for j, t in enumerate(thetas):
+            wi = np.array([np.sin(np.radians(t)), 0.0, np.cos(np.radians(t))])
+            m = lamina.optics.sample_visible_normal(wi, rng.random((200_000, 2)), a, distribution=distribution)
+            wo = 2 * (m @ wi)[:, None] * m - wi
+            g2 = lamina.optics.masking_shadowing(wi, wo, m, a, distribution=distribution)
+            lam = lamina.optics.smith_lambda(wi, a, distribution=distribution)
+            table[i, j] = np.mean(np.where(wo[:, 2] > 0, g2 * (1 + lam), 0.0))
+    return alphas, thetas, table
+
+
+def main():
+    rng = np.random.default_rng(7)
+    out = ["# Validation", "", "Generated by `scripts/validation_report.py` (`make validation`); do not edit by hand.",
+           "The same comparisons are asserted by `make test` (tests/), with the tolerances listed here.", "",
+           f"## Single interfaces against Mitsuba {mi.__version__} ({MI_RGB}, separable Smith, ext_ior = 1)", "",
+           "Relative error |lamina − Mitsuba| / |Mitsuba| over random direction pairs concentrated on the lobe "
+           "(values below 1e-6 of the peak compared absolutely).", "",
+           "| comparison | pairs | max rel. error | median rel. error | asserted tolerance |", "|---|---:|---:|---:|---|"]
+    for name, n, mx, med, tol in mitsuba_rows(rng):
+        out.append(f"| {name} | {n} | {mx:.1e} | {med:.1e} | {tol} |")
+    out += ["", "## Hemispherical Fresnel reflectance F̄_int (plastic's only formula difference)", "",
+            "lamina integrates F̄_int = 2∫F(μ, 1/η) μ dμ exactly (Gauss–Legendre with the energy-balance identity); "
+            "Mitsuba uses a polynomial fit.", "",
+            "| η | lamina (exact) | Mitsuba fit | difference |", "|---:|---:|---:|---:|"]
+    for eta, a, b, d in fdr_rows():
+        out.append(f"| {eta} | {a:.6f} | {b:.6f} | {d:+.1e} |")
+    out += ["", "## Spectral → CIE XYZ / linear sRGB against colour-science "
+            f"{colour.__version__} (D65, 1 nm, normal-incidence reflectance of the shipped metals)", "",
+            "| metal | XYZ (lamina) | max abs. XYZ diff. | linear sRGB (lamina) | max abs. sRGB diff. |",
+            "|---|---|---:|---|---:|"]
+    for metal, xyz, dx, srgb, ds in colour_rows():
+        out.append(f"| {metal} | {np.round(xyz, 4).tolist()} | {dx:.1e} | {np.round(srgb, 4).tolist()} | {ds:.1e} |")
+    for dist in ("ggx", "beckmann"):
+        alphas, thetas, t = energy_table(rng, dist)
+        out += ["", f"## Single-scattering albedo of a white {dist.upper()} mirror (energy kept by one microfacet bounce)",
+                "", "E[G2/G1] under visible-normal sampling, 200k samples each (standard error < 1e-3): 1 − value is "
+                "the energy that single-scattering microfacet models lose (height-correlated Smith).", "",
+                "| alpha \\ θi | " + " | ".join(f"{x}°" for x in thetas) + " |", "|---:|" + "---:|" * len(thetas)]
+        for a, row in zip(alphas, t):
+            out.append(f"| {a} | " + " | ".join(f"{v:.4f}" for v in row) + " |")
+    path = ROOT / "docs" / "validation.md"
+    path.write_text("\n".join(out) + "\n")
+    print("\n".join(out))
+    print(f"wrote {path}", file=sys.stderr)
+
+
+if __name__ == "__main__":
+    main()
