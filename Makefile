@@ -3,9 +3,9 @@ SHELL := /bin/bash
 PY ?= python3
 VENV := .venv
 VPY := $(VENV)/bin/python
-# Mitsuba's llvm_ad_* variants need a system libLLVM >= 15 (Debian: libllvm19, installed by system-deps when root);
-# the tests fall back to the scalar_* variants without it and say so.
-LLVM := DRJIT_LIBLLVM_PATH="$$(ls /usr/lib/*/libLLVM-19.so /usr/lib/*/libLLVM-1[5-9].so /usr/lib/*/libLLVM.so.1[5-9]* 2>/dev/null | head -1)"
+# Mitsuba's llvm_ad_* variants need a system libLLVM: tests/libllvm.py picks the highest version >= 16 (3.9.1 aborts
+# with LLVM 15); system-deps installs Debian's libllvm19 when root. Without one, the tests use scalar_* variants.
+LLVM = DRJIT_LIBLLVM_PATH="$$($(PY) tests/libllvm.py)"
 
 .PHONY: demo test develop venv test-deps system-deps rust-test py-test bench validation clean
 
@@ -27,7 +27,7 @@ demo: develop
 
 # Debian's libLLVM for Mitsuba's llvm_ad_* variants, installed when running as root (CI and dev machines).
 system-deps:
-	@if [ "$$(id -u)" = 0 ] && command -v apt-get >/dev/null && ! ls /usr/lib/*/libLLVM* 2>/dev/null | grep -qE 'LLVM(-|\.so\.)(1[5-9]|[2-9][0-9])'; then \
+	@if [ "$$(id -u)" = 0 ] && command -v apt-get >/dev/null && [ -z "$$($(PY) tests/libllvm.py)" ]; then \
 		echo "installing libllvm19 for Mitsuba's llvm variants"; \
 		apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq libllvm19 >/dev/null; \
 	fi

@@ -1,26 +1,23 @@
 """Shared fixtures: random directions and the Mitsuba 3 harness.
 
-Mitsuba's llvm_ad_* variants need a system libLLVM >= 15. The Makefile installs Debian's libllvm19 when running as
-root and points DRJIT_LIBLLVM_PATH at it; without it every Mitsuba comparison still runs, on scalar_* variants
-(slower, same checks), and the pytest header says which variant was used.
+Mitsuba's llvm_ad_* variants need a system libLLVM (>= 16 here, see tests/libllvm.py). The Makefile installs
+Debian's libllvm19 when running as root; DRJIT_LIBLLVM_PATH is pointed at the best one found. Without it every
+Mitsuba comparison still runs, on scalar_* variants (slower, same checks), and the pytest header says so.
 """
 
 from __future__ import annotations
 
-import glob
 import os
-import re
 
 import numpy as np
 import pytest
 
+from libllvm import find as find_libllvm
+
 if not os.environ.get("DRJIT_LIBLLVM_PATH"):
-    found = sorted(
-        (p for p in glob.glob("/usr/lib/*/libLLVM*.so*") if re.search(r"LLVM(-|\.so\.)(1[5-9]|[2-9]\d)", p)),
-        reverse=True,
-    )
-    if found:
-        os.environ["DRJIT_LIBLLVM_PATH"] = found[0]
+    # With no usable libLLVM, point Dr.Jit at none rather than let its own search load LLVM 15 (which aborts):
+    # the LLVM backend then fails to initialise cleanly and the comparisons run on scalar_* variants.
+    os.environ["DRJIT_LIBLLVM_PATH"] = find_libllvm() or "/nonexistent/libLLVM-16-or-newer.so"
 
 import drjit as dr  # noqa: E402
 import mitsuba as mi  # noqa: E402
@@ -38,7 +35,7 @@ MI_RGB = _pick_rgb_variant()
 
 
 def pytest_report_header(config):
-    note = "" if MI_RGB.startswith("llvm") else " (no libLLVM >= 15 found: Mitsuba checks run on scalar_rgb)"
+    note = "" if MI_RGB.startswith("llvm") else " (no libLLVM >= 16 found: Mitsuba checks run on scalar_rgb)"
     return f"mitsuba {mi.__version__}: RGB comparisons on {MI_RGB}{note}; DRJIT_LIBLLVM_PATH={os.environ.get('DRJIT_LIBLLVM_PATH')}"
 
 

@@ -97,6 +97,13 @@ def test_roughdielectric(rng, distribution, eta, alpha, case):
     wi, wo = wi[keep], wo[keep]
     if case in ("reflect-inside", "transmit-from-inside"):
         wi, wo = -wi, -wo
+    if case == "reflect-inside":
+        # At the critical angle F(cos) has a √-singularity, so float32 rounding of cos (~6e-8) becomes ~2e-4 in F
+        # (measured 1.2e-4 on scalar_rgb). Keeping 1 − sin²θt > 1e-3 bounds that effect to ~2e-6.
+        h = unit(wi + wo)
+        cos_h = np.abs(np.sum(wi * h, -1))
+        ok = np.abs(1 - (1 - cos_h**2) * eta**2) > 1e-3
+        wi, wo = wi[ok], wo[ok]
     if case.startswith("transmit"):
         # Mitsuba builds the generalised half-vector in float32; when light grazes the microfacet (|w·h| -> 0) the
         # cancellation makes its value ill-conditioned (measured: errors up to 48% below |w·h| = 0.05, < 1e-4
