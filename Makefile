@@ -39,7 +39,7 @@ rust-test:
 	cargo test --release
 
 py-test: develop test-deps
-	$(LLVM) $(VPY) -m pytest -q tests
+	$(LLVM) $(VPY) -m pytest tests
 
 test: rust-test py-test
 

@@ -36,8 +36,7 @@ pub fn rough_dielectric(mf: &Microfacet, form: G2Form, eta: f64, wi: DVec3, wo: 
         return 0.0;
     }
     if wi.z * wo.z > 0.0 {
-        return reflection_geometry(mf, form, wi, wo)
-            .map_or(0.0, |(geo, cos_h)| geo * fresnel::dielectric(cos_h, eta));
+        return reflection_geometry(mf, form, wi, wo).map_or(0.0, |(geo, cos_h)| geo * fresnel::dielectric(cos_h, eta));
     }
     let (eta_i, eta_o) = if wi.z > 0.0 { (1.0, eta) } else { (eta, 1.0) };
     let h = -(eta_i * wi + eta_o * wo);

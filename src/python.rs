@@ -10,11 +10,11 @@ use crate::stack::{Error, Layer, Stack};
 use glam::DVec3;
 use numpy::ndarray::IxDyn;
 use numpy::{PyArrayDyn, PyArrayMethods, PyReadonlyArrayDyn, PyUntypedArrayMethods};
-use std::sync::atomic::{AtomicUsize, Ordering};
 use pyo3::exceptions::{PyTypeError, PyValueError};
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyList};
 use rayon::prelude::*;
+use std::sync::atomic::{AtomicUsize, Ordering};
 
 impl From<Error> for PyErr {
     fn from(e: Error) -> PyErr {
@@ -90,7 +90,10 @@ fn batch<'py>(
         }
         let shape = shapes.last().unwrap();
         if shape.last() != Some(&kind.width()) {
-            return Err(PyValueError::new_err(format!("{name} must have shape (..., {}), got {shape:?}", kind.width())));
+            return Err(PyValueError::new_err(format!(
+                "{name} must have shape (..., {}), got {shape:?}",
+                kind.width()
+            )));
         }
     }
     let batch_shape = shapes[0][..shapes[0].len() - 1].to_vec();
@@ -98,7 +101,10 @@ fn batch<'py>(
         if s[..s.len() - 1] != batch_shape[..] {
             return Err(PyValueError::new_err(format!(
                 "{} has batch shape {:?}, which does not match {}'s {:?}",
-                inputs[i].0, &s[..s.len() - 1], inputs[0].0, batch_shape
+                inputs[i].0,
+                &s[..s.len() - 1],
+                inputs[0].0,
+                batch_shape
             )));
         }
     }
@@ -127,38 +133,36 @@ fn batch<'py>(
     let mut shape = batch_shape;
     shape.push(out_k);
     let first_bad = AtomicUsize::new(NO_ERROR);
-    let run = |out: &mut dyn FnMut(&(dyn Fn(usize, &mut [f64]) + Sync))| {
-        out(&|i, o: &mut [f64]| {
-            let mut rows = [[0.0; MAX_WIDTH]; MAX_INPUTS];
-            for (j, (d, kind)) in data.iter().zip(&kinds).enumerate() {
-                let w = kind.width();
-                let row = &mut rows[j];
-                for c in 0..w {
-                    row[c] = d.get(i * w + c);
-                }
-                let finite = row[..w].iter().all(|x| x.is_finite());
-                let len = (row[0] * row[0] + row[1] * row[1] + row[2] * row[2]).sqrt();
-                if !finite || (*kind == Kind::Direction && len == 0.0) {
-                    first_bad.fetch_min((i * MAX_INPUTS + j) * 2 + finite as usize, Ordering::Relaxed);
-                    return;
-                }
-                if *kind == Kind::Direction {
-                    let inv = 1.0 / len;
-                    row.iter_mut().for_each(|x| *x *= inv);
-                }
+    let eval_row = |i: usize, o: &mut [f64]| {
+        let mut rows = [[0.0; MAX_WIDTH]; MAX_INPUTS];
+        for (j, (d, kind)) in data.iter().zip(&kinds).enumerate() {
+            let w = kind.width();
+            let row = &mut rows[j];
+            for (c, x) in row[..w].iter_mut().enumerate() {
+                *x = d.get(i * w + c);
             }
-            kernel(&rows[..data.len()], o);
-        })
+            let finite = row[..w].iter().all(|x| x.is_finite());
+            let len = (row[0] * row[0] + row[1] * row[1] + row[2] * row[2]).sqrt();
+            if !finite || (*kind == Kind::Direction && len == 0.0) {
+                first_bad.fetch_min((i * MAX_INPUTS + j) * 2 + finite as usize, Ordering::Relaxed);
+                return;
+            }
+            if *kind == Kind::Direction {
+                let inv = 1.0 / len;
+                row.iter_mut().for_each(|x| *x *= inv);
+            }
+        }
+        kernel(&rows[..data.len()], o);
     };
     let result = if f64s.is_empty() {
         let array = unsafe { PyArrayDyn::<f32>::new(py, IxDyn(&shape), false) };
         let slice = unsafe { array.as_slice_mut() }.expect("new arrays are contiguous");
-        py.detach(|| run(&mut |f| fill(slice, out_k, f)));
+        py.detach(|| fill(slice, out_k, &eval_row));
         array.into_any()
     } else {
         let array = unsafe { PyArrayDyn::<f64>::new(py, IxDyn(&shape), false) };
         let slice = unsafe { array.as_slice_mut() }.expect("new arrays are contiguous");
-        py.detach(|| run(&mut |f| fill(slice, out_k, f)));
+        py.detach(|| fill(slice, out_k, &eval_row));
         array.into_any()
     };
     let bad = first_bad.into_inner();
@@ -294,7 +298,11 @@ fn eval_stack<'py>(
     fresnel: &str,
 ) -> PyResult<Bound<'py, PyAny>> {
     let stack = parse_stack(layers, ext_ior)?;
-    let opts = Options { distribution: parse_distribution(distribution)?, g2: parse_g2(g2)?, fresnel: parse_fresnel(fresnel)? };
+    let opts = Options {
+        distribution: parse_distribution(distribution)?,
+        g2: parse_g2(g2)?,
+        fresnel: parse_fresnel(fresnel)?,
+    };
     let model = models::prepare(model, &stack, &opts)?;
     batch(py, &[("wi", wi, Kind::Direction), ("wo", wo, Kind::Direction)], stack.channels, |r, o| {
         model.eval(vec3(&r[0]), vec3(&r[1]), o)
@@ -313,33 +321,34 @@ fn scalar_kernel<'py, const M: usize>(
 }
 
 #[pyfunction]
-fn fresnel_dielectric<'py>(py: Python<'py>, cos_i: &Bound<'py, PyAny>, eta: &Bound<'py, PyAny>) -> PyResult<Bound<'py, PyAny>> {
+fn fresnel_dielectric<'py>(
+    py: Python<'py>,
+    cos_i: &Bound<'py, PyAny>,
+    eta: &Bound<'py, PyAny>,
+) -> PyResult<Bound<'py, PyAny>> {
     scalar_kernel(py, ["cos_i", "eta"], [cos_i, eta], |[c, e]| fresnel::dielectric(c, e))
 }
 
+/// Conductor reflectance of η + iκ in the form named by `form` ('exact', 'schlick' or 'lazanyi').
 #[pyfunction]
 fn fresnel_conductor<'py>(
     py: Python<'py>,
     cos_i: &Bound<'py, PyAny>,
     eta: &Bound<'py, PyAny>,
     k: &Bound<'py, PyAny>,
+    form: &str,
 ) -> PyResult<Bound<'py, PyAny>> {
-    scalar_kernel(py, ["cos_i", "eta", "k"], [cos_i, eta, k], |[c, e, k]| fresnel::conductor(c, e, k))
+    let form = parse_fresnel(form)?;
+    scalar_kernel(py, ["cos_i", "eta", "k"], [cos_i, eta, k], |[c, e, k]| form.conductor(c, e, k))
 }
 
 #[pyfunction]
-fn fresnel_schlick<'py>(py: Python<'py>, cos_i: &Bound<'py, PyAny>, f0: &Bound<'py, PyAny>) -> PyResult<Bound<'py, PyAny>> {
-    scalar_kernel(py, ["cos_i", "f0"], [cos_i, f0], |[c, f]| fresnel::schlick(c, f))
-}
-
-#[pyfunction]
-fn fresnel_lazanyi<'py>(
+fn fresnel_schlick<'py>(
     py: Python<'py>,
     cos_i: &Bound<'py, PyAny>,
-    eta: &Bound<'py, PyAny>,
-    k: &Bound<'py, PyAny>,
+    f0: &Bound<'py, PyAny>,
 ) -> PyResult<Bound<'py, PyAny>> {
-    scalar_kernel(py, ["cos_i", "eta", "k"], [cos_i, eta, k], |[c, e, k]| fresnel::lazanyi(c, e, k))
+    scalar_kernel(py, ["cos_i", "f0"], [cos_i, f0], |[c, f]| fresnel::schlick(c, f))
 }
 
 #[pyfunction]
@@ -361,13 +370,27 @@ fn microfacet(alpha_x: f64, alpha_y: f64, angle: f64, distribution: &str) -> PyR
 }
 
 #[pyfunction]
-fn microfacet_d<'py>(py: Python<'py>, m: &Bound<'py, PyAny>, alpha_x: f64, alpha_y: f64, angle: f64, distribution: &str) -> PyResult<Bound<'py, PyAny>> {
+fn microfacet_d<'py>(
+    py: Python<'py>,
+    m: &Bound<'py, PyAny>,
+    alpha_x: f64,
+    alpha_y: f64,
+    angle: f64,
+    distribution: &str,
+) -> PyResult<Bound<'py, PyAny>> {
     let mf = microfacet(alpha_x, alpha_y, angle, distribution)?;
     batch(py, &[("m", m, Kind::Direction)], 1, |r, o| o[0] = mf.d(vec3(&r[0])))
 }
 
 #[pyfunction]
-fn microfacet_lambda<'py>(py: Python<'py>, w: &Bound<'py, PyAny>, alpha_x: f64, alpha_y: f64, angle: f64, distribution: &str) -> PyResult<Bound<'py, PyAny>> {
+fn microfacet_lambda<'py>(
+    py: Python<'py>,
+    w: &Bound<'py, PyAny>,
+    alpha_x: f64,
+    alpha_y: f64,
+    angle: f64,
+    distribution: &str,
+) -> PyResult<Bound<'py, PyAny>> {
     let mf = microfacet(alpha_x, alpha_y, angle, distribution)?;
     batch(py, &[("w", w, Kind::Direction)], 1, |r, o| o[0] = mf.lambda(vec3(&r[0])))
 }
@@ -391,7 +414,15 @@ fn microfacet_g2<'py>(
 }
 
 #[pyfunction]
-fn sample_visible<'py>(py: Python<'py>, wi: &Bound<'py, PyAny>, u: &Bound<'py, PyAny>, alpha_x: f64, alpha_y: f64, angle: f64, distribution: &str) -> PyResult<Bound<'py, PyAny>> {
+fn sample_visible<'py>(
+    py: Python<'py>,
+    wi: &Bound<'py, PyAny>,
+    u: &Bound<'py, PyAny>,
+    alpha_x: f64,
+    alpha_y: f64,
+    angle: f64,
+    distribution: &str,
+) -> PyResult<Bound<'py, PyAny>> {
     let mf = microfacet(alpha_x, alpha_y, angle, distribution)?;
     batch(py, &[("wi", wi, Kind::Direction), ("u", u, Kind::Values(2))], 3, |r, o| {
         let wi = vec3(&r[0]);
@@ -402,7 +433,15 @@ fn sample_visible<'py>(py: Python<'py>, wi: &Bound<'py, PyAny>, u: &Bound<'py, P
 }
 
 #[pyfunction]
-fn pdf_visible<'py>(py: Python<'py>, wi: &Bound<'py, PyAny>, m: &Bound<'py, PyAny>, alpha_x: f64, alpha_y: f64, angle: f64, distribution: &str) -> PyResult<Bound<'py, PyAny>> {
+fn pdf_visible<'py>(
+    py: Python<'py>,
+    wi: &Bound<'py, PyAny>,
+    m: &Bound<'py, PyAny>,
+    alpha_x: f64,
+    alpha_y: f64,
+    angle: f64,
+    distribution: &str,
+) -> PyResult<Bound<'py, PyAny>> {
     let mf = microfacet(alpha_x, alpha_y, angle, distribution)?;
     batch(py, &[("wi", wi, Kind::Direction), ("m", m, Kind::Direction)], 1, |r, o| {
         o[0] = mf.pdf_visible(vec3(&r[0]), vec3(&r[1]))
@@ -427,7 +466,11 @@ fn interface_bsdf<'py>(
 ) -> PyResult<Bound<'py, PyAny>> {
     let (mf, form) = (microfacet(alpha_x, alpha_y, angle, distribution)?, parse_g2(g2)?);
     if eta.is_empty() || eta.len() != k.len() {
-        return Err(PyValueError::new_err(format!("eta and k need the same number (> 0) of channels, got {} and {}", eta.len(), k.len())));
+        return Err(PyValueError::new_err(format!(
+            "eta and k need the same number (> 0) of channels, got {} and {}",
+            eta.len(),
+            k.len()
+        )));
     }
     if let Some(e) = eta.iter().find(|e| !(e.is_finite() && **e > 0.0)) {
         return Err(PyValueError::new_err(format!("eta must be in (0, inf), got {e}")));
@@ -461,7 +504,6 @@ fn _lamina(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(fresnel_dielectric, m)?)?;
     m.add_function(wrap_pyfunction!(fresnel_conductor, m)?)?;
     m.add_function(wrap_pyfunction!(fresnel_schlick, m)?)?;
-    m.add_function(wrap_pyfunction!(fresnel_lazanyi, m)?)?;
     m.add_function(wrap_pyfunction!(fresnel_diffuse_reflectance, m)?)?;
     m.add_function(wrap_pyfunction!(microfacet_d, m)?)?;
     m.add_function(wrap_pyfunction!(microfacet_lambda, m)?)?;

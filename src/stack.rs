@@ -30,7 +30,15 @@ pub fn value_error<T>(msg: impl Into<String>) -> Result<T> {
 pub enum Layer {
     /// Interface of absolute IOR `ior` over a slab of `thickness` with absorption `sigma_a`, scattering `sigma_s`
     /// (per unit length) and Henyey–Greenstein asymmetry `g`.
-    Dielectric { ior: Vec<f64>, alpha: (f64, f64), angle: f64, thickness: f64, sigma_a: Vec<f64>, sigma_s: Vec<f64>, g: f64 },
+    Dielectric {
+        ior: Vec<f64>,
+        alpha: (f64, f64),
+        angle: f64,
+        thickness: f64,
+        sigma_a: Vec<f64>,
+        sigma_s: Vec<f64>,
+        g: f64,
+    },
     /// Opaque conductor of absolute complex IOR `ior` + i`k`.
     Conductor { ior: Vec<f64>, k: Vec<f64>, alpha: (f64, f64), angle: f64 },
     /// Opaque diffuse base: Lambert when `roughness` = 0, else Oren–Nayar with σ = `roughness` radians.
@@ -91,7 +99,9 @@ impl Stack {
     pub fn new(layers: Vec<Layer>, ext_ior: f64) -> Result<Stack> {
         check_range("ext_ior", &[ext_ior], 0.0, f64::INFINITY, true, "(0, inf)")?;
         let Some(last) = layers.last() else {
-            return value_error("layers: a stack needs at least one layer and must end in an opaque base (Conductor or Diffuse)");
+            return value_error(
+                "layers: a stack needs at least one layer and must end in an opaque base (Conductor or Diffuse)",
+            );
         };
         if !last.is_opaque() {
             return value_error("layers: the stack has no opaque base; its last layer must be a Conductor or Diffuse");
@@ -149,8 +159,15 @@ mod tests {
     }
 
     fn coat(roughness: f64) -> Layer {
-        Layer::Dielectric { ior: vec![1.5; 3], alpha: (roughness, roughness), angle: 0.0, thickness: 0.0,
-            sigma_a: vec![0.0; 3], sigma_s: vec![0.0; 3], g: 0.0 }
+        Layer::Dielectric {
+            ior: vec![1.5; 3],
+            alpha: (roughness, roughness),
+            angle: 0.0,
+            thickness: 0.0,
+            sigma_a: vec![0.0; 3],
+            sigma_s: vec![0.0; 3],
+            g: 0.0,
+        }
     }
 
     #[test]
@@ -160,7 +177,9 @@ mod tests {
         assert!(msg(Stack::new(vec![], 1.0)).contains("at least one layer"));
         assert!(msg(Stack::new(vec![coat(0.1)], 1.0)).contains("no opaque base"));
         assert!(msg(Stack::new(vec![gold(), coat(0.1)], 1.0)).contains("no opaque base"));
-        assert!(msg(Stack::new(vec![coat(1.5), gold()], 1.0)).contains("layer 0 (Dielectric): roughness must be in [0, 1]"));
+        assert!(
+            msg(Stack::new(vec![coat(1.5), gold()], 1.0)).contains("layer 0 (Dielectric): roughness must be in [0, 1]")
+        );
         assert!(msg(Stack::new(vec![gold()], 0.0)).contains("ext_ior"));
         let bad = Layer::Conductor { ior: vec![0.0, 1.0, 1.0], k: vec![1.0; 3], alpha: (0.1, 0.1), angle: 0.0 };
         assert!(msg(Stack::new(vec![bad], 1.0)).contains("ior must be in (0, inf)"));

@@ -22,7 +22,7 @@ def fresnel_dielectric(cos_i, eta) -> np.ndarray:
 
 def fresnel_conductor(cos_i, eta, k) -> np.ndarray:
     """Exact unpolarized conductor reflectance of the relative complex IOR eta + ik, cos_i in [0, 1]."""
-    return _scalar(_lamina.fresnel_conductor, cos_i=cos_i, eta=eta, k=k)
+    return _scalar(lambda *a: _lamina.fresnel_conductor(*a, "exact"), cos_i=cos_i, eta=eta, k=k)
 
 
 def fresnel_schlick(cos_i, f0) -> np.ndarray:
@@ -32,7 +32,7 @@ def fresnel_schlick(cos_i, f0) -> np.ndarray:
 
 def fresnel_lazanyi(cos_i, eta, k) -> np.ndarray:
     """Lazányi & Szirmay-Kalos 2005 approximation [(η-1)² + 4η(1-cos)^5 + k²] / [(η+1)² + k²]."""
-    return _scalar(_lamina.fresnel_lazanyi, cos_i=cos_i, eta=eta, k=k)
+    return _scalar(lambda *a: _lamina.fresnel_conductor(*a, "lazanyi"), cos_i=cos_i, eta=eta, k=k)
 
 
 def fresnel_diffuse_reflectance(eta) -> np.ndarray:

@@ -31,7 +31,9 @@ pub fn prepare(stack: &Stack, opts: &Options) -> Result<Prepared> {
         }),
         [Layer::Diffuse { albedo, roughness }] => Ok(Prepared::Diffuse { albedo: albedo.clone(), sigma: *roughness }),
         [Layer::Dielectric { ior, alpha: (ax, ay), thickness, sigma_a, sigma_s, .. }, Layer::Diffuse { albedo, roughness }]
-            if *ax == 0.0 && *ay == 0.0 && *roughness == 0.0
+            if *ax == 0.0
+                && *ay == 0.0
+                && *roughness == 0.0
                 && (*thickness == 0.0 || sigma_a.iter().chain(sigma_s).all(|&s| s == 0.0)) =>
         {
             let eta = rel(ior);

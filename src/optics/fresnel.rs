@@ -153,8 +153,14 @@ mod tests {
         // Brute-force midpoint sums (2e6 points) on both sides of a glass interface.
         for eta in [1.5, 1.0 / 1.5, 1.1, 0.4] {
             let n = 2_000_000;
-            let brute: f64 = (0..n).map(|i| (i as f64 + 0.5) / n as f64).map(|mu| 2.0 * mu * dielectric(mu, eta)).sum::<f64>() / n as f64;
-            assert!((diffuse_reflectance(eta) - brute).abs() < 1e-8, "eta {eta}: {} vs {brute}", diffuse_reflectance(eta));
+            let brute: f64 =
+                (0..n).map(|i| (i as f64 + 0.5) / n as f64).map(|mu| 2.0 * mu * dielectric(mu, eta)).sum::<f64>()
+                    / n as f64;
+            assert!(
+                (diffuse_reflectance(eta) - brute).abs() < 1e-8,
+                "eta {eta}: {} vs {brute}",
+                diffuse_reflectance(eta)
+            );
         }
     }
 }

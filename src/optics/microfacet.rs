@@ -43,21 +43,21 @@ impl Microfacet {
         self.smooth
     }
 
-    fn local(&self, w: DVec3) -> DVec3 {
+    fn tangent(&self, w: DVec3) -> DVec3 {
         if self.sin_phi == 0.0 && self.cos_phi == 1.0 {
             return w;
         }
         to_tangent_frame(w, self.cos_phi, self.sin_phi)
     }
 
-    fn from_local(&self, w: DVec3) -> DVec3 {
+    fn untangent(&self, w: DVec3) -> DVec3 {
         to_tangent_frame(w, self.cos_phi, -self.sin_phi)
     }
 
     /// Normal distribution D(m) (Walter et al. 2007 eq. 33 for GGX, eq. 25 for Beckmann; anisotropic form of
     /// Heitz 2014 eq. 85/86). Zero for m below the horizon.
     pub fn d(&self, m: DVec3) -> f64 {
-        let m = self.local(m);
+        let m = self.tangent(m);
         if m.z <= 0.0 {
             return 0.0;
         }
@@ -68,16 +68,14 @@ impl Microfacet {
                 let s = x * x + y * y + z2;
                 1.0 / (PI * self.alpha_x * self.alpha_y * s * s)
             }
-            Distribution::Beckmann => {
-                (-(x * x + y * y) / z2).exp() / (PI * self.alpha_x * self.alpha_y * z2 * z2)
-            }
+            Distribution::Beckmann => (-(x * x + y * y) / z2).exp() / (PI * self.alpha_x * self.alpha_y * z2 * z2),
         }
     }
 
     /// Smith Λ(w) of the distribution (Heitz 2014 eq. 72 for GGX, eq. 69 for Beckmann), using the projected
     /// roughness α(φ) along the azimuth of w.
     pub fn lambda(&self, w: DVec3) -> f64 {
-        let w = self.local(w);
+        let w = self.tangent(w);
         let alpha_tan2 = ((w.x * self.alpha_x).powi(2) + (w.y * self.alpha_y).powi(2)) / (w.z * w.z);
         if alpha_tan2 == 0.0 || !alpha_tan2.is_finite() {
             return if alpha_tan2 == 0.0 { 0.0 } else { f64::INFINITY };
@@ -134,7 +132,7 @@ impl Microfacet {
     /// distribution of visible normals" (JCGT 7(4)), listing 1. Beckmann: Heitz & d'Eon 2014 §4 (stretch,
     /// sample the slope distribution of the standard Beckmann configuration, unstretch).
     pub fn sample_visible(&self, wi: DVec3, u1: f64, u2: f64) -> DVec3 {
-        let v = self.local(wi);
+        let v = self.tangent(wi);
         let vh = DVec3::new(self.alpha_x * v.x, self.alpha_y * v.y, v.z).normalize();
         let m = match self.dist {
             Distribution::Ggx => {
@@ -154,7 +152,7 @@ impl Microfacet {
                 DVec3::new(-sx * self.alpha_x, -sy * self.alpha_y, 1.0)
             }
         };
-        self.from_local(m.normalize())
+        self.untangent(m.normalize())
     }
 }
 
@@ -197,7 +195,11 @@ fn beckmann_sample_slopes(v: DVec3, u1: f64, u2: f64) -> (f64, f64) {
             if f.abs() < 1e-14 {
                 break;
             }
-            if f > 0.0 { hi = x } else { lo = x }
+            if f > 0.0 {
+                hi = x
+            } else {
+                lo = x
+            }
             let newton = x - f / ((c - x) * (-x * x).exp());
             x = if newton > lo && newton < hi { newton } else { 0.5 * (lo + hi) };
             if hi - lo < 1e-13 {
@@ -216,13 +218,31 @@ pub fn erf_inv(y: f64) -> f64 {
     let w = -((1.0 - y) * (1.0 + y)).ln();
     let mut x = if w < 5.0 {
         let w = w - 2.5;
-        let p = [2.81022636e-08, 3.43273939e-07, -3.5233877e-06, -4.39150654e-06, 0.00021858087, -0.00125372503,
-            -0.00417768164, 0.246640727, 1.50140941];
+        let p = [
+            2.81022636e-08,
+            3.43273939e-07,
+            -3.5233877e-06,
+            -4.39150654e-06,
+            0.00021858087,
+            -0.00125372503,
+            -0.00417768164,
+            0.246640727,
+            1.50140941,
+        ];
         p.iter().fold(0.0, |acc, &c| acc * w + c) * y
     } else {
         let w = w.sqrt() - 3.0;
-        let p = [-0.000200214257, 0.000100950558, 0.00134934322, -0.00367342844, 0.00573950773, -0.0076224613,
-            0.00943887047, 1.00167406, 2.83297682];
+        let p = [
+            -0.000200214257,
+            0.000100950558,
+            0.00134934322,
+            -0.00367342844,
+            0.00573950773,
+            -0.0076224613,
+            0.00943887047,
+            1.00167406,
+            2.83297682,
+        ];
         p.iter().fold(0.0, |acc, &c| acc * w + c) * y
     };
     for _ in 0..2 {
@@ -239,30 +259,38 @@ mod tests {
         DVec3::new(theta.sin() * phi.cos(), theta.sin() * phi.sin(), theta.cos())
     }
 
-    /// ∫ D(m) (m·n) dm = 1 over the hemisphere (midpoint rule in (θ, φ)).
-    fn projected_area(mf: &Microfacet, w: DVec3, f: impl Fn(&Microfacet, DVec3) -> f64) -> f64 {
-        let (nt, np) = (800, 400);
-        let mut sum = 0.0;
+    /// Midpoint-rule integral of `f(m)` over the upper hemisphere in (θ, φ).
+    fn hemisphere_integral<T: std::ops::Add<Output = T> + std::ops::Mul<f64, Output = T>>(
+        (nt, np): (usize, usize),
+        zero: T,
+        f: impl Fn(DVec3) -> T,
+    ) -> T {
+        let da = (0.5 * PI / nt as f64) * (2.0 * PI / np as f64);
+        let mut sum = zero;
         for i in 0..nt {
             let t = (i as f64 + 0.5) / nt as f64 * 0.5 * PI;
             for j in 0..np {
                 let p = (j as f64 + 0.5) / np as f64 * 2.0 * PI;
-                let m = sphere_dir(t, p);
-                sum += f(mf, m) * m.dot(w).max(0.0) / m.z.max(1e-300) * m.z * t.sin();
+                sum = sum + f(sphere_dir(t, p)) * (t.sin() * da);
             }
         }
-        sum * (0.5 * PI / nt as f64) * (2.0 * PI / np as f64)
+        sum
+    }
+
+    /// ∫ D(m) max(0, m·w) dm (the projected area of the microsurface seen from w).
+    fn projected_area(mf: &Microfacet, w: DVec3) -> f64 {
+        hemisphere_integral((800, 400), 0.0, |m| mf.d(m) * m.dot(w).max(0.0))
     }
 
     #[test]
     fn ndf_normalisation_and_smith_consistency() {
         for dist in [Distribution::Ggx, Distribution::Beckmann] {
             let mf = Microfacet::new(dist, 0.4, 0.7, 0.3);
-            let norm = projected_area(&mf, DVec3::Z, |m, x| m.d(x));
+            let norm = projected_area(&mf, DVec3::Z);
             assert!((norm - 1.0).abs() < 2e-3, "{dist:?}: ∫D cos = {norm}");
             // Projected area seen from w equals cos θ (1 + Λ(w)) (Heitz 2014 eq. 14).
             let w = sphere_dir(1.0, 0.8);
-            let area = projected_area(&mf, w, |m, x| m.d(x));
+            let area = projected_area(&mf, w);
             assert!((area - w.z * (1.0 + mf.lambda(w))).abs() < 3e-3, "{dist:?}: {area}");
         }
     }
@@ -281,21 +309,9 @@ mod tests {
                 mean += mf.sample_visible(wi, u1, u2);
             }
             mean /= n as f64;
-            let (nt, np) = (600, 600);
-            let mut expect = DVec3::ZERO;
-            let mut norm = 0.0;
-            for i in 0..nt {
-                let t = (i as f64 + 0.5) / nt as f64 * 0.5 * PI;
-                for j in 0..np {
-                    let p = (j as f64 + 0.5) / np as f64 * 2.0 * PI;
-                    let m = sphere_dir(t, p);
-                    let w = mf.pdf_visible(wi, m) * t.sin();
-                    expect += w * m;
-                    norm += w;
-                }
-            }
-            let da = (0.5 * PI / nt as f64) * (2.0 * PI / np as f64);
-            assert!((norm * da - 1.0).abs() < 2e-3, "{dist:?}: ∫pdf = {}", norm * da);
+            let norm = hemisphere_integral((600, 600), 0.0, |m| mf.pdf_visible(wi, m));
+            let expect = hemisphere_integral((600, 600), DVec3::ZERO, |m| m * mf.pdf_visible(wi, m));
+            assert!((norm - 1.0).abs() < 2e-3, "{dist:?}: ∫pdf = {norm}");
             let expect = expect / norm;
             assert!((mean - expect).length() < 3e-3, "{dist:?}: {mean} vs {expect}");
         }
