@@ -1,12 +1,15 @@
 //! lamina: layered BRDF models for rendering research.
 //!
 //! Layout: `optics` (Fresnel, microfacet distributions, diffuse lobes) → `bsdf` (single rough interfaces) →
-//! `stack` (the layer stack description) → `models` (one module per model) → `python` (the NumPy bindings).
+//! `stack` (the layer stack description) → `models` (one module per model) → `reference` (the Monte Carlo ground
+//! truth, with `sampling`) → `python` (the NumPy bindings).
 //! Conventions are stated once in docs/conventions.md.
 
 pub mod bsdf;
 pub mod models;
 pub mod optics;
+pub mod reference;
+pub mod sampling;
 pub mod stack;
 
 #[cfg(feature = "python")]

@@ -6,6 +6,7 @@ use crate::bsdf;
 use crate::models::{self, Options, MODELS};
 use crate::optics::fresnel::{self, FresnelForm};
 use crate::optics::microfacet::{Distribution, G2Form, Microfacet};
+use crate::reference;
 use crate::stack::{Error, Layer, Stack};
 use glam::DVec3;
 use numpy::ndarray::IxDyn;
@@ -495,6 +496,54 @@ fn interface_bsdf<'py>(
     })
 }
 
+/// Brute-force random walk from one direction `wi` (unit, z > 0) over paths `first..first + samples`, tallying the
+/// escaping energy in `n_theta` x `n_phi` bins uniform in (θo, φo) (1 x 1: the albedo). Returns the per-channel
+/// sums, sums of squares (each (channels, bins)) and truncated-path counts, to be merged by the caller.
+#[pyfunction]
+#[pyo3(signature = (layers, ext_ior, wi, first, samples, seed, n_theta=1, n_phi=1, distribution="ggx", g2="height_correlated"))]
+#[allow(clippy::too_many_arguments)]
+fn reference_tally<'py>(
+    py: Python<'py>,
+    layers: &Bound<'py, PyList>,
+    ext_ior: f64,
+    wi: [f64; 3],
+    first: u64,
+    samples: u64,
+    seed: u64,
+    n_theta: usize,
+    n_phi: usize,
+    distribution: &str,
+    g2: &str,
+) -> PyResult<(Vec<Vec<f64>>, Vec<Vec<f64>>, Vec<u64>)> {
+    let stack = parse_stack(layers, ext_ior)?;
+    let (dist, g2) = (parse_distribution(distribution)?, parse_g2(g2)?);
+    let wi = DVec3::from_array(wi);
+    if !wi.is_finite() || wi.z <= 0.0 || (wi.length() - 1.0).abs() > 1e-9 {
+        return Err(PyValueError::new_err(format!("wi must be a unit direction above the surface (z > 0), got {wi}")));
+    }
+    if samples == 0 || n_theta == 0 || n_phi == 0 {
+        return Err(PyValueError::new_err("samples, n_theta and n_phi must be positive"));
+    }
+    let bin = |d: DVec3| {
+        let t = ((d.z.clamp(-1.0, 1.0).acos() / std::f64::consts::FRAC_PI_2) * n_theta as f64) as usize;
+        let p = ((d.y.atan2(d.x).rem_euclid(std::f64::consts::TAU) / std::f64::consts::TAU) * n_phi as f64) as usize;
+        Some(t.min(n_theta - 1) * n_phi + p.min(n_phi - 1))
+    };
+    let tallies: Vec<reference::Tally> = py.detach(|| {
+        (0..stack.channels)
+            .map(|c| {
+                let cs = reference::ChannelStack::new(&stack, c, dist, g2);
+                reference::run(&cs, wi, (first, samples), seed, n_theta * n_phi, bin)
+            })
+            .collect()
+    });
+    Ok((
+        tallies.iter().map(|t| t.sum.clone()).collect(),
+        tallies.iter().map(|t| t.sum_sq.clone()).collect(),
+        tallies.iter().map(|t| t.truncated).collect(),
+    ))
+}
+
 #[pymodule]
 fn _lamina(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add("MODELS", MODELS.to_vec())?;
@@ -511,5 +560,7 @@ fn _lamina(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(sample_visible, m)?)?;
     m.add_function(wrap_pyfunction!(pdf_visible, m)?)?;
     m.add_function(wrap_pyfunction!(interface_bsdf, m)?)?;
+    m.add_function(wrap_pyfunction!(reference_tally, m)?)?;
+    m.add("REFERENCE_MAX_DEPTH", crate::reference::MAX_DEPTH)?;
     Ok(())
 }

@@ -140,6 +140,66 @@ class Stack:
                                   distribution=distribution, g2=g2, fresnel=fresnel)
 
 
+    def albedo(self, wi, model: str = "microfacet", *, wavelengths=None, samples: int = 100_000, seed: int = 0,
+               progress=None, distribution: str = "ggx", g2: str = "height_correlated", fresnel: str = "exact"):
+        """Directional albedo ∫ f(wi, wo) cos θo dωo: the fraction of light from wi that the stack reflects.
+
+        wi: (..., 3). Returns (..., channels). For an analytic model the integral is a midpoint quadrature
+        (512 x 1024 in θo, φo) of `eval` (its smooth, Dirac parts are not included). With model="reference" it is
+        the brute-force Monte Carlo walk with `samples` paths per direction (delta reflections included), and the
+        result is a pair (albedo, standard error)."""
+        wl = _wavelengths(wavelengths)
+        (wi,) = broadcast(wi=(wi, 3))
+        rows = _unit_rows("wi", wi)
+        if model == "reference":
+            from .reference import tally
+
+            mean, err = tally(self._resolve(wl), self.ext_ior, rows, samples, seed, progress=progress,
+                              distribution=distribution, g2=g2)
+            shape = wi.shape[:-1] + (mean.shape[1],)
+            return mean[..., 0].reshape(shape), err[..., 0].reshape(shape)
+        nt, npp = 512, 1024
+        t = (np.arange(nt) + 0.5) * (np.pi / 2 / nt)
+        p = (np.arange(npp) + 0.5) * (2 * np.pi / npp)
+        wo = np.stack([np.outer(np.sin(t), np.cos(p)), np.outer(np.sin(t), np.sin(p)),
+                       np.repeat(np.cos(t)[:, None], npp, axis=1)], axis=-1)
+        weight = (np.cos(t) * np.sin(t))[:, None, None] * (np.pi / 2 / nt) * (2 * np.pi / npp)
+        out = [np.sum(self.eval(w, wo, model, wavelengths=wl, distribution=distribution, g2=g2, fresnel=fresnel)
+                      * weight, axis=(0, 1)) for w in rows]
+        return np.array(out).reshape(wi.shape[:-1] + (len(out[0]),))
+
+    def reference_lobe(self, wi, bins=(18, 36), *, wavelengths=None, samples: int = 1_000_000, seed: int = 0,
+                       progress=None, distribution: str = "ggx", g2: str = "height_correlated"):
+        """Brute-force Monte Carlo lobe for light from one direction `wi` (3,): the reflected energy per steradian,
+        i.e. f·cos θo averaged over each of n_theta x n_phi bins uniform in (θo, φo) (delta lobes included).
+
+        Returns (f_cos, stderr, (theta_edges, phi_edges)) with f_cos and stderr of shape (n_theta, n_phi, channels)
+        and edges in radians."""
+        wl = _wavelengths(wavelengths)
+        (wi,) = broadcast(wi=(wi, 3))
+        if wi.shape != (3,):
+            raise ValueError(f"wi must be a single direction of shape (3,), got {wi.shape}")
+        n_theta, n_phi = (int(b) for b in bins)
+        from .reference import tally
+
+        mean, err = tally(self._resolve(wl), self.ext_ior, _unit_rows("wi", wi), samples, seed,
+                          bins=(n_theta, n_phi), progress=progress, distribution=distribution, g2=g2)
+        te = np.linspace(0, np.pi / 2, n_theta + 1)
+        pe = np.linspace(0, 2 * np.pi, n_phi + 1)
+        solid = np.outer(np.cos(te[:-1]) - np.cos(te[1:]), np.diff(pe))  # (n_theta, n_phi) steradians
+        per_sr = lambda x: np.moveaxis(x[0].reshape(-1, n_theta, n_phi), 0, -1) / solid[..., None]  # noqa: E731
+        return per_sr(mean), per_sr(err), (te, pe)
+
+
+def _unit_rows(name: str, w: np.ndarray) -> np.ndarray:
+    """Rows of w as unit float64 directions above the surface; ValueError otherwise."""
+    rows = np.asarray(w, dtype=np.float64).reshape(-1, 3)
+    norm = np.linalg.norm(rows, axis=-1, keepdims=True)
+    if not np.all(np.isfinite(rows)) or np.any(norm == 0) or np.any(rows[:, 2] <= 0):
+        raise ValueError(f"{name} must hold finite, non-zero directions above the surface (z > 0)")
+    return rows / norm
+
+
 def _wavelengths(wavelengths):
     if wavelengths is None:
         return None
