@@ -544,6 +544,47 @@ fn reference_tally<'py>(
     ))
 }
 
+/// NEE estimates of f(wi, wo) for direction pairs (rows of unit directions above the surface), paths
+/// `first..first + samples` each: per-pair, per-channel sums and sums of squares ((pairs, channels) each) and the
+/// number of truncated paths per channel.
+#[pyfunction]
+#[pyo3(signature = (layers, ext_ior, wi, wo, first, samples, seed, distribution="ggx", g2="height_correlated"))]
+#[allow(clippy::too_many_arguments, clippy::type_complexity)]
+fn reference_f<'py>(
+    py: Python<'py>,
+    layers: &Bound<'py, PyList>,
+    ext_ior: f64,
+    wi: Vec<[f64; 3]>,
+    wo: Vec<[f64; 3]>,
+    first: u64,
+    samples: u64,
+    seed: u64,
+    distribution: &str,
+    g2: &str,
+) -> PyResult<(Vec<Vec<f64>>, Vec<Vec<f64>>, Vec<u64>)> {
+    let stack = parse_stack(layers, ext_ior)?;
+    let (dist, g2) = (parse_distribution(distribution)?, parse_g2(g2)?);
+    if wi.len() != wo.len() || samples == 0 {
+        return Err(PyValueError::new_err("wi and wo need the same number of rows, and samples must be positive"));
+    }
+    let (wi, wo): (Vec<DVec3>, Vec<DVec3>) = (wi.into_iter().map(DVec3::from_array).collect(), wo.into_iter().map(DVec3::from_array).collect());
+    if let Some(w) = wi.iter().chain(&wo).find(|w| !w.is_finite() || w.z <= 0.0 || (w.length() - 1.0).abs() > 1e-9) {
+        return Err(PyValueError::new_err(format!("wi and wo must be unit directions above the surface (z > 0), got {w}")));
+    }
+    let per_channel: Vec<Vec<(f64, f64, u64)>> = py.detach(|| {
+        (0..stack.channels)
+            .map(|c| {
+                let cs = reference::ChannelStack::new(&stack, c, dist, g2);
+                (0..wi.len()).into_par_iter().map(|p| reference::run_f(&cs, wi[p], wo[p], (first, samples), seed)).collect()
+            })
+            .collect()
+    });
+    let pick = |k: fn(&(f64, f64, u64)) -> f64| -> Vec<Vec<f64>> {
+        (0..wi.len()).map(|p| per_channel.iter().map(|ch| k(&ch[p])).collect()).collect()
+    };
+    Ok((pick(|t| t.0), pick(|t| t.1), per_channel.iter().map(|ch| ch.iter().map(|t| t.2).sum()).collect()))
+}
+
 #[pymodule]
 fn _lamina(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add("MODELS", MODELS.to_vec())?;
@@ -561,6 +602,7 @@ fn _lamina(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(pdf_visible, m)?)?;
     m.add_function(wrap_pyfunction!(interface_bsdf, m)?)?;
     m.add_function(wrap_pyfunction!(reference_tally, m)?)?;
+    m.add_function(wrap_pyfunction!(reference_f, m)?)?;
     m.add("REFERENCE_MAX_DEPTH", crate::reference::MAX_DEPTH)?;
     Ok(())
 }

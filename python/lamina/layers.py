@@ -17,7 +17,8 @@ Colour = Union[float, Sequence[float], Spectrum]
 #: A GGX/Beckmann roughness alpha in [0, 1]: isotropic scalar or (alpha_x, alpha_y) along the layer's tangent.
 Roughness = Union[float, Sequence[float]]
 
-MODELS: tuple[str, ...] = tuple(_lamina.MODELS)
+#: Model names accepted by Stack.eval: the analytic ones (Rust) and the Monte Carlo "reference".
+MODELS: tuple[str, ...] = tuple(_lamina.MODELS) + ("reference",)
 
 
 def _channels(name: str, value: Colour, wavelengths) -> list[float]:
@@ -125,7 +126,7 @@ class Stack:
         return [layer._resolve(wavelengths) for layer in self.layers]
 
     def eval(self, wi, wo, model: str = "microfacet", *, wavelengths=None, distribution: str = "ggx",
-             g2: str = "height_correlated", fresnel: str = "exact") -> np.ndarray:
+             g2: str = "height_correlated", fresnel: str = "exact", samples: int = 10_000, seed: int = 0) -> np.ndarray:
         """The BRDF f(wi, wo), not multiplied by cos θo.
 
         wi, wo: directions (..., 3) in the local frame (z = normal), both pointing away from the surface; they need
@@ -133,12 +134,30 @@ class Stack:
         Returns (..., 3) linear RGB channels, or (..., len(wavelengths)) with `wavelengths` (nm). float32 when both
         inputs are float32, float64 otherwise. Units: 1/sr.
         Options: `distribution` 'ggx' | 'beckmann'; `g2` 'height_correlated' (default) | 'separable' (Mitsuba 3) |
-        'v_cavity'; `fresnel` 'exact' | 'schlick' | 'lazanyi' (conductors)."""
+        'v_cavity'; `fresnel` 'exact' | 'schlick' | 'lazanyi' (conductors). model="reference" returns the mean of
+        `Stack.reference` with `samples` paths per pair (exact Fresnel)."""
+        if model == "reference":
+            return self.reference(wi, wo, wavelengths=wavelengths, samples=samples, seed=seed,
+                                  distribution=distribution, g2=g2)[0]
         wl = _wavelengths(wavelengths)
         wi, wo = broadcast(wi=(wi, 3), wo=(wo, 3))
         return _lamina.eval_stack(self._resolve(wl), self.ext_ior, model, wi, wo,
                                   distribution=distribution, g2=g2, fresnel=fresnel)
 
+
+    def reference(self, wi, wo, *, wavelengths=None, samples: int = 100_000, seed: int = 0, progress=None,
+                  distribution: str = "ggx", g2: str = "height_correlated"):
+        """Monte Carlo ground truth for f(wi, wo): unbiased, with next-event estimation through the stack's delta
+        interfaces (see src/reference.rs). wi, wo: (..., 3), broadcast. Returns (f, stderr), each (..., channels).
+        Specular (Dirac) lobes are not part of f. Deterministic for a seed, whatever the thread count."""
+        wl = _wavelengths(wavelengths)
+        wi, wo = broadcast(wi=(wi, 3), wo=(wo, 3))
+        from .reference import f_estimate
+
+        mean, err = f_estimate(self._resolve(wl), self.ext_ior, _unit_rows("wi", wi), _unit_rows("wo", wo), samples,
+                               seed, progress=progress, distribution=distribution, g2=g2)
+        shape = wi.shape[:-1] + (mean.shape[-1],)
+        return mean.reshape(shape), err.reshape(shape)
 
     def albedo(self, wi, model: str = "microfacet", *, wavelengths=None, samples: int = 100_000, seed: int = 0,
                progress=None, distribution: str = "ggx", g2: str = "height_correlated", fresnel: str = "exact"):

@@ -50,4 +50,32 @@ PRESETS = {
     "clay": lambda: Stack([Diffuse((0.55, 0.35, 0.25), roughness=0.6)]),
 }
 
-__all__ = ["metal", "elek2010_rgb", "ELEK2010", "plastic", "preset", "PRESETS", "IOR_MATERIALS"]
+#: The material suite used for validation and benchmarks: layered stacks covering coats over metals, absorbing and
+#: scattering slabs, anisotropy with rotated tangent frames and three layers. Thicknesses in arbitrary units, with
+#: sigma_a / sigma_s in their inverse.
+SUITE = {
+    "gold-clearcoat": lambda: Stack([Dielectric(1.5), metal("Au", 0.15)]),
+    "frosted-metal": lambda: Stack([Dielectric(1.5, 0.35), metal("Al", 0.02)]),
+    "rough-coat-rough-copper": lambda: Stack([Dielectric(1.5, 0.2), metal("Cu", 0.35)]),
+    "varnished-diffuse": lambda: Stack([Dielectric(1.5, thickness=1.0, sigma_a=(0.1, 0.35, 0.9)),
+                                        Diffuse((0.6, 0.35, 0.15))]),
+    "anisotropic-coat-metal": lambda: Stack([Dielectric(1.5, (0.1, 0.4), angle=0.5),
+                                             metal("Al", (0.35, 0.08), angle=-0.4)]),
+    "thick-absorbing-slab": lambda: Stack([Dielectric(1.5, 0.1, thickness=5.0, sigma_a=(0.05, 0.15, 0.4)),
+                                           Diffuse(0.8)]),
+    "three-layer": lambda: Stack([Dielectric(1.3, 0.1), Dielectric(1.6, 0.25, thickness=0.5, sigma_a=0.2),
+                                  metal("Cu", 0.2)]),
+    "scattering-slab": lambda: Stack([Dielectric(1.4, thickness=1.0, sigma_a=0.05, sigma_s=2.0, g=0.7),
+                                      Diffuse((0.5, 0.4, 0.3))]),
+}
+
+
+def suite(name: str) -> Stack:
+    """A material of the validation suite (see SUITE)."""
+    try:
+        return SUITE[name]()
+    except KeyError:
+        raise ValueError(f"name must be one of {sorted(SUITE)}, got {name!r}") from None
+
+
+__all__ = ["SUITE", "suite", "metal", "elek2010_rgb", "ELEK2010", "plastic", "preset", "PRESETS", "IOR_MATERIALS"]

@@ -6,7 +6,11 @@ Ctrl-C between chunks; results depend only on (seed, samples), never on the thre
 
 from __future__ import annotations
 
+import hashlib
+import json
+import os
 import warnings
+from pathlib import Path
 
 import numpy as np
 
@@ -26,12 +30,46 @@ def _progress(total: int, progress):
     return tqdm(total=total, unit="path", unit_scale=True, desc="lamina reference")
 
 
-def tally(layers, ext_ior, wi_rows: np.ndarray, samples: int, seed: int, bins=(1, 1), progress=None, **options):
-    """Mean escaping energy per path and its standard error, shape (rows, channels, n_theta * n_phi) each."""
+def _finish(truncated: int):
+    if truncated:
+        warnings.warn(f"{truncated} reference paths reached the depth limit ({_lamina.REFERENCE_MAX_DEPTH} events) "
+                      "and were dropped; the estimate is biased low by at most their share", stacklevel=4)
+
+
+def _check(samples, seed):
     if not isinstance(samples, (int, np.integer)) or samples < 2:
         raise ValueError(f"samples must be an integer >= 2, got {samples!r}")
     if not isinstance(seed, (int, np.integer)) or seed < 0:
         raise ValueError(f"seed must be a non-negative integer, got {seed!r}")
+
+
+def f_estimate(layers, ext_ior, wi_rows, wo_rows, samples: int, seed: int, progress=None, **options):
+    """NEE estimate of f for each (wi, wo) row pair: mean and standard error, (pairs, channels) each."""
+    _check(samples, seed)
+    bar = _progress(len(wi_rows) * samples, progress)
+    s = s2 = None
+    truncated = 0
+    wi_list, wo_list = wi_rows.tolist(), wo_rows.tolist()
+    try:
+        for first in range(0, samples, CHUNK):
+            n = min(CHUNK, samples - first)
+            a, b, t = _lamina.reference_f(layers, ext_ior, wi_list, wo_list, first, n, int(seed), **options)
+            a, b = np.asarray(a), np.asarray(b)
+            s, s2 = (a, b) if s is None else (s + a, s2 + b)
+            truncated += int(np.sum(t))
+            if bar is not None:
+                bar.update(n * len(wi_list))
+    finally:
+        if bar is not None:
+            bar.close()
+    _finish(truncated)
+    mean = s / samples
+    return mean, np.sqrt(np.maximum(s2 / samples - mean**2, 0.0) / (samples - 1))
+
+
+def tally(layers, ext_ior, wi_rows: np.ndarray, samples: int, seed: int, bins=(1, 1), progress=None, **options):
+    """Mean escaping energy per path and its standard error, shape (rows, channels, n_theta * n_phi) each."""
+    _check(samples, seed)
     n_theta, n_phi = bins
     bar = _progress(len(wi_rows) * samples, progress)
     means, errors, truncated = [], [], 0
@@ -53,7 +91,62 @@ def tally(layers, ext_ior, wi_rows: np.ndarray, samples: int, seed: int, bins=(1
     finally:
         if bar is not None:
             bar.close()
-    if truncated:
-        warnings.warn(f"{truncated} reference paths reached the depth limit ({_lamina.REFERENCE_MAX_DEPTH} events) "
-                      "and were dropped; the estimate is biased low by at most their share", stacklevel=3)
+    _finish(truncated)
     return np.array(means), np.array(errors)
+
+
+#: Incident zenith angles (degrees) of the suite's reference grid.
+SUITE_THETAS = (0.0, 30.0, 60.0, 80.0, 87.0)
+
+
+def suite_directions() -> tuple[np.ndarray, np.ndarray]:
+    """The fixed grid of the suite's reference values: wi (5, 1, 3) at SUITE_THETAS in the x–z plane (φ = 0) and
+    wo (1, 30, 3) at θo ∈ {0, 20, 40, 60, 75, 85}° x φo ∈ {0, 45, 90, 135, 180}° (φo = 180° holds the mirror
+    direction); they broadcast to (5, 30, 3)."""
+    ti = np.radians(SUITE_THETAS)
+    wi = np.stack([np.sin(ti), np.zeros_like(ti), np.cos(ti)], -1)[:, None, :]
+    to, po = np.meshgrid(np.radians([0, 20, 40, 60, 75, 85]), np.radians([0, 45, 90, 135, 180]), indexing="ij")
+    wo = np.stack([np.sin(to) * np.cos(po), np.sin(to) * np.sin(po), np.cos(to)], -1).reshape(1, -1, 3)
+    return wi, wo
+
+
+def cache_dir() -> Path:
+    """Where reference results are cached: $LAMINA_CACHE, else ~/.cache/lamina."""
+    return Path(os.environ.get("LAMINA_CACHE", Path.home() / ".cache" / "lamina")) / "reference"
+
+
+def cache_key(stack, wi, wo, samples: int, seed: int, **options) -> str:
+    """Hash of everything a reference result depends on: the resolved stack, directions, sample count, seed,
+    options and the lamina version."""
+    h = hashlib.sha256()
+    h.update(json.dumps([stack._resolve(options.get("wavelengths")), stack.ext_ior, samples, seed,
+                         {k: (np.asarray(v).tolist() if k == "wavelengths" and v is not None else v)
+                          for k, v in sorted(options.items())}, _lamina.__version__]).encode())
+    for a in (wi, wo):
+        h.update(np.ascontiguousarray(a, dtype=np.float64).tobytes())
+        h.update(str(np.shape(a)).encode())
+    return h.hexdigest()[:32]
+
+
+def cached_reference(stack, wi, wo, samples: int = 100_000, seed: int = 0, progress=None, **options):
+    """Stack.reference(wi, wo, ...) through the on-disk cache: (f, stderr), computed once per key."""
+    path = cache_dir() / f"{cache_key(stack, wi, wo, samples, seed, **options)}.npz"
+    if path.exists():
+        with np.load(path) as z:
+            return z["f"], z["stderr"]
+    f, se = stack.reference(wi, wo, samples=samples, seed=seed, progress=progress, **options)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_suffix(".tmp.npz")
+    np.savez(tmp, f=f, stderr=se)
+    tmp.replace(path)
+    return f, se
+
+
+def suite_reference(name: str, samples: int = 100_000, seed: int = 0, progress=None):
+    """Reference f and standard error of suite material `name` on the suite grid (cached): (wi, wo, f, stderr)
+    with f and stderr of shape (5, 30, 3)."""
+    from .materials import suite
+
+    wi, wo = suite_directions()
+    f, se = cached_reference(suite(name), wi, wo, samples=samples, seed=seed, progress=progress)
+    return wi, wo, f, se
