@@ -567,15 +567,21 @@ fn reference_f<'py>(
     if wi.len() != wo.len() || samples == 0 {
         return Err(PyValueError::new_err("wi and wo need the same number of rows, and samples must be positive"));
     }
-    let (wi, wo): (Vec<DVec3>, Vec<DVec3>) = (wi.into_iter().map(DVec3::from_array).collect(), wo.into_iter().map(DVec3::from_array).collect());
+    let (wi, wo): (Vec<DVec3>, Vec<DVec3>) =
+        (wi.into_iter().map(DVec3::from_array).collect(), wo.into_iter().map(DVec3::from_array).collect());
     if let Some(w) = wi.iter().chain(&wo).find(|w| !w.is_finite() || w.z <= 0.0 || (w.length() - 1.0).abs() > 1e-9) {
-        return Err(PyValueError::new_err(format!("wi and wo must be unit directions above the surface (z > 0), got {w}")));
+        return Err(PyValueError::new_err(format!(
+            "wi and wo must be unit directions above the surface (z > 0), got {w}"
+        )));
     }
     let per_channel: Vec<Vec<(f64, f64, u64)>> = py.detach(|| {
         (0..stack.channels)
             .map(|c| {
                 let cs = reference::ChannelStack::new(&stack, c, dist, g2);
-                (0..wi.len()).into_par_iter().map(|p| reference::run_f(&cs, wi[p], wo[p], (first, samples), seed)).collect()
+                (0..wi.len())
+                    .into_par_iter()
+                    .map(|p| reference::run_f(&cs, wi[p], wo[p], (first, samples), seed))
+                    .collect()
             })
             .collect()
     });

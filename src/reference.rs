@@ -165,6 +165,76 @@ fn is_delta(s: &ChannelStack, b: usize) -> bool {
     }
 }
 
+/// Solid-angle density of refracting from `w` (incident side up, w.z > 0) into `o` (o.z < 0) through `mf` with
+/// relative IOR `eta`, without the probability 1 − F of choosing refraction; and F (Walter et al. 2007 eq. 17).
+fn refraction_pdf(mf: &Microfacet, eta: f64, w: DVec3, o: DVec3) -> (f64, f64) {
+    let h = -(w + eta * o);
+    if h.length_squared() == 0.0 {
+        return (0.0, 1.0);
+    }
+    let h = h.normalize();
+    let h = if h.z < 0.0 { -h } else { h };
+    let (wh, oh) = (w.dot(h), o.dot(h));
+    if wh <= 0.0 || oh >= 0.0 {
+        return (0.0, 1.0);
+    }
+    let jacobian = eta * eta * oh.abs() / (wh + eta * oh).powi(2);
+    (mf.pdf_visible(w, h) * jacobian, fresnel::dielectric(wh, eta))
+}
+
+/// Density with which the walk, arriving at boundary `b` from direction `w_in` (pointing away on its side), leaves
+/// along `w_out` (the new travel direction); 0 for delta boundaries. The pdfs of `scatter_interface` and
+/// `scatter_base`, used for multiple importance sampling.
+fn boundary_pdf(s: &ChannelStack, b: usize, w_in: DVec3, w_out: DVec3) -> f64 {
+    if let Some(it) = s.interfaces.get(b) {
+        if it.mf.is_smooth() {
+            return 0.0;
+        }
+        let (w, o, eta) = if w_in.z > 0.0 { (w_in, w_out, it.eta) } else { (-w_in, -w_out, 1.0 / it.eta) };
+        if o.z > 0.0 {
+            let h = (w + o).normalize();
+            return it.mf.pdf_visible(w, h) * fresnel::dielectric(w.dot(h), eta) / (4.0 * w.dot(h).abs());
+        }
+        let (pdf, f) = refraction_pdf(&it.mf, eta, w, o);
+        return pdf * (1.0 - f);
+    }
+    match &s.base {
+        Base::Conductor { mf, .. } if mf.is_smooth() => 0.0,
+        Base::Conductor { mf, .. } => {
+            let h = (w_in + w_out).normalize();
+            mf.pdf_visible(w_in, h) / (4.0 * w_in.dot(h).abs())
+        }
+        Base::Diffuse { .. } => w_out.z.max(0.0) * std::f64::consts::FRAC_1_PI,
+    }
+}
+
+/// Power heuristic (Veach 1997 eq. 9.13) for a strategy of density `p` against one of density `q`.
+fn power_heuristic(p: f64, q: f64) -> f64 {
+    if p == 0.0 {
+        0.0
+    } else {
+        p * p / (p * p + q * q)
+    }
+}
+
+/// Light sampled through a rough top interface into slab 0 (strategy A of the MIS at rough tops): travel direction,
+/// flux weight (1 − F) G2/G1 and the density of the direction.
+#[derive(Clone, Copy, Debug)]
+struct LightSample {
+    d: DVec3,
+    weight: f64,
+    pdf: f64,
+}
+
+fn sample_light_through_top(s: &ChannelStack, wi: DVec3, rng: &mut Rng) -> Option<LightSample> {
+    let top = s.interfaces.first().filter(|it| !it.mf.is_smooth())?;
+    let m = top.mf.sample_visible(wi, rng.uniform(), rng.uniform());
+    let d = refract(wi, m, top.eta).filter(|d| d.z < 0.0)?;
+    let (pdf, f) = refraction_pdf(&top.mf, top.eta, wi, d);
+    let weight = (1.0 - f) * top.mf.g2(s.g2, wi, d, m) / top.mf.g1(wi, m);
+    (pdf > 0.0 && weight > 0.0).then_some(LightSample { d, weight, pdf })
+}
+
 /// Where the light subpath can be joined: its first non-delta boundary, or a scattering slab it crosses.
 #[derive(Clone, Copy, Debug)]
 pub enum Target {
@@ -186,7 +256,11 @@ fn light_targets(s: &ChannelStack, wi: DVec3, rng: &mut Rng, out: &mut Vec<Targe
     }
     let (mut d, mut b, mut weight) = (-wi, 0, 1.0);
     for _ in 0..MAX_DEPTH {
-        let scattered = if b == n { scatter_base(&s.base, s.g2, d, rng) } else { scatter_interface(&s.interfaces[b].mf, s.g2, s.interfaces[b].eta, d, rng) };
+        let scattered = if b == n {
+            scatter_base(&s.base, s.g2, d, rng)
+        } else {
+            scatter_interface(&s.interfaces[b].mf, s.g2, s.interfaces[b].eta, d, rng)
+        };
         let Some((dir, w)) = scattered else { return };
         d = dir;
         weight *= w;
@@ -219,22 +293,57 @@ fn light_targets(s: &ChannelStack, wi: DVec3, rng: &mut Rng, out: &mut Vec<Targe
 
 /// One sample of f(wi, wo) (wi.z, wo.z > 0; specular delta lobes excluded). Returns None if the camera walk was
 /// truncated at MAX_DEPTH (counted by the caller).
+///
+/// With a rough top, paths whose light enters through the top are found by two strategies combined with the power
+/// heuristic (as in pbrt-v4's LayeredBxDF): (A) a light direction sampled through the top from wi, joined at camera
+/// vertices in slab 0; (B) the camera path reaching the top from below, joined by evaluating the top's BTDF at wi.
 pub fn estimate_f(s: &ChannelStack, wi: DVec3, wo: DVec3, rng: &mut Rng, targets: &mut Vec<Target>) -> Option<f64> {
     light_targets(s, wi, rng, targets);
+    let light = sample_light_through_top(s, wi, rng);
+    let slab0_tr = |depth: f64, d: DVec3| {
+        let sl = &s.slabs[0];
+        if sl.thickness == 0.0 {
+            1.0
+        } else {
+            (-(sl.sigma_a + sl.sigma_s) * depth / d.z.abs()).exp()
+        }
+    };
     let n = s.interfaces.len();
     let (mut d, mut b, mut beta, mut f) = (-wo, 0, 1.0, 0.0);
+    let mut last_pdf: Option<f64> = None; // density of the direction sampled at the last non-delta vertex
     let mut events = 0;
     while events < MAX_DEPTH {
         events += 1;
         for t in targets.iter() {
             if let Target::Surface { b: tb, w_light, weight } = *t {
                 if tb == b {
-                    f += beta * weight * boundary_f(s, b, w_light, -d);
+                    // Strategy B at the top from below, weighted against A's density for the same direction.
+                    let mis = match (b == 0 && d.z > 0.0, light, last_pdf) {
+                        (true, Some(_), Some(pb)) => {
+                            let top = &s.interfaces[0];
+                            power_heuristic(pb, refraction_pdf(&top.mf, top.eta, wi, -d).0)
+                        }
+                        _ => 1.0,
+                    };
+                    f += beta * weight * boundary_f(s, b, w_light, -d) * mis;
                 }
             }
         }
-        let scattered = if b == n { scatter_base(&s.base, s.g2, d, rng) } else { scatter_interface(&s.interfaces[b].mf, s.g2, s.interfaces[b].eta, d, rng) };
+        if let (Some(l), 1) = (light, b) {
+            // Strategy A at boundary 1 (from above: reflection, from below: transmission).
+            let fv = boundary_f(s, 1, -l.d, -d);
+            if fv > 0.0 {
+                let pb = boundary_pdf(s, 1, -d, -l.d);
+                f += beta * fv * l.weight * slab0_tr(s.slabs[0].thickness, l.d) * power_heuristic(l.pdf, pb);
+            }
+        }
+        let scattered = if b == n {
+            scatter_base(&s.base, s.g2, d, rng)
+        } else {
+            scatter_interface(&s.interfaces[b].mf, s.g2, s.interfaces[b].eta, d, rng)
+        };
         let Some((dir, w)) = scattered else { return Some(f) };
+        last_pdf = if is_delta(s, b) { None } else { Some(boundary_pdf(s, b, -d, dir)) };
         if b < n && dir.z * d.z > 0.0 {
             // Radiance crossing into the other medium: L_here = (η_here / η_there)² L_there.
             let eta = s.interfaces[b].eta; // η_below / η_above
@@ -273,8 +382,16 @@ pub fn estimate_f(s: &ChannelStack, wi: DVec3, wo: DVec3, rng: &mut Rng, targets
                         }
                     }
                 }
+                if let (Some(l), 0) = (light, slab) {
+                    // Strategy A at a collision in slab 0.
+                    let p = henyey_greenstein(l.d.dot(-d), sl.g);
+                    let pb = henyey_greenstein(d.dot(-l.d), sl.g);
+                    f += beta * albedo * p * l.weight * slab0_tr(z, l.d) / l.d.z.abs() * power_heuristic(l.pdf, pb);
+                }
                 beta *= albedo;
-                d = sample_henyey_greenstein(d, sl.g, rng.uniform(), rng.uniform());
+                let new_d = sample_henyey_greenstein(d, sl.g, rng.uniform(), rng.uniform());
+                last_pdf = Some(henyey_greenstein(d.dot(new_d), sl.g));
+                d = new_d;
                 events += 1;
                 if events >= MAX_DEPTH {
                     return None;
@@ -294,9 +411,11 @@ pub fn estimate_f(s: &ChannelStack, wi: DVec3, wo: DVec3, rng: &mut Rng, targets
 }
 
 /// Sums of `samples` estimates of f(wi, wo) from paths `first..first + samples`: (sum, sum of squares, truncated).
-/// Deterministic in (seed, path index) whatever the thread count.
+/// Path i uses stream (seed mixed with wi and wo, i): reproducible whatever the thread count or batch, and
+/// independent between direction pairs (so averages over directions have honest standard errors).
 pub fn run_f(s: &ChannelStack, wi: DVec3, wo: DVec3, (first, samples): (u64, u64), seed: u64) -> (f64, f64, u64) {
     let blocks = samples.div_ceil(BLOCK as u64);
+    let seed = Rng::seed_for(seed, &[wi.x, wi.y, wi.z, wo.x, wo.y, wo.z]);
     let end = first + samples;
     let parts: Vec<(f64, f64, u64)> = (0..blocks)
         .into_par_iter()
@@ -433,7 +552,8 @@ impl Tally {
 }
 
 /// Runs paths `first..first + samples` from `wi` and tallies escaping energy with `bin(dir)` (None: not counted).
-/// Path i uses stream (seed, i); blocks are reduced in order, so the result does not depend on the thread count.
+/// Path i uses stream (seed mixed with wi, i); blocks are reduced in order, so the result does not depend on the
+/// thread count, and different directions get independent streams.
 pub fn run(
     s: &ChannelStack,
     wi: DVec3,
@@ -444,6 +564,7 @@ pub fn run(
 ) -> Tally {
     let blocks = samples.div_ceil(BLOCK as u64);
     let end = first + samples;
+    let seed = Rng::seed_for(seed, &wi.to_array());
     let tallies: Vec<Tally> = (0..blocks)
         .into_par_iter()
         .map(|b| {
@@ -518,7 +639,8 @@ mod tests {
     fn f_of_smooth_coat_over_lambert_equals_closed_form() {
         let s = stack(vec![coat(1.5, 0.0, 0.0, 0.0, 0.0), Layer::Diffuse { albedo: vec![0.8], roughness: 0.0 }]);
         let f_int = fresnel::diffuse_reflectance(1.0 / 1.5);
-        for (wi, wo) in [(DVec3::new(0.3, 0.0, 0.95), DVec3::new(0.5, 0.5, 0.7)), (DVec3::new(0.9, 0.1, 0.2), DVec3::Z)] {
+        for (wi, wo) in [(DVec3::new(0.3, 0.0, 0.95), DVec3::new(0.5, 0.5, 0.7)), (DVec3::new(0.9, 0.1, 0.2), DVec3::Z)]
+        {
             let (wi, wo) = (wi.normalize(), wo.normalize());
             let exact = crate::models::microfacet::smooth_coat_lambert(0.8, 1.5, f_int, wi.z, wo.z);
             let (mean, se) = f_estimate(&s, wi, wo, 200_000);

@@ -24,6 +24,12 @@ impl Rng {
         z ^ (z >> 31)
     }
 
+    /// A seed for the streams of one configuration: mixes `seed` with the bit patterns of `values` (e.g. the
+    /// directions of a query), so different queries get independent streams while each stays reproducible.
+    pub fn seed_for(seed: u64, values: &[f64]) -> u64 {
+        values.iter().fold(seed, |acc, v| Rng(acc ^ v.to_bits()).next_u64())
+    }
+
     /// Uniform in [0, 1) with 53 random bits.
     pub fn uniform(&mut self) -> f64 {
         (self.next_u64() >> 11) as f64 * (1.0 / (1u64 << 53) as f64)
@@ -79,6 +85,13 @@ mod tests {
         let mut r = Rng::new(1, 1);
         let mean = (0..100_000).map(|_| r.uniform()).sum::<f64>() / 1e5;
         assert!((mean - 0.5).abs() < 4.0 * (1.0 / 12.0f64 / 1e5).sqrt());
+    }
+
+    #[test]
+    fn query_seeds_differ_per_query_and_repeat() {
+        assert_eq!(Rng::seed_for(1, &[0.5, 0.25]), Rng::seed_for(1, &[0.5, 0.25]));
+        assert_ne!(Rng::seed_for(1, &[0.5, 0.25]), Rng::seed_for(1, &[0.25, 0.5]));
+        assert_ne!(Rng::seed_for(1, &[0.5]), Rng::seed_for(2, &[0.5]));
     }
 
     #[test]
