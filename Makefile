@@ -7,7 +7,7 @@ VPY := $(VENV)/bin/python
 # with LLVM 15); system-deps installs Debian's libllvm19 when root. Without one, the tests use scalar_* variants.
 LLVM = DRJIT_LIBLLVM_PATH="$$($(PY) tests/libllvm.py)"
 
-.PHONY: demo test develop venv test-deps system-deps rust-test py-test bench validation clean
+.PHONY: demo test develop venv test-deps system-deps rust-test py-test bench validation reference clean
 
 $(VPY):
 	$(PY) -m venv $(VENV)
@@ -45,10 +45,15 @@ test: rust-test py-test
 
 bench: develop test-deps
 	$(LLVM) $(VPY) benchmarks/bench_conductor.py
+	$(VPY) benchmarks/bench_reference.py
 
 # Regenerates docs/validation.md from measurements against Mitsuba 3 and colour-science.
 validation: develop test-deps
 	$(LLVM) $(VPY) scripts/validation_report.py
+
+# Computes (or loads from ~/.cache/lamina) the suite's reference values on its fixed direction grid.
+reference: develop
+	$(VPY) -c "import lamina.reference as r, lamina.materials as m; [print(n, r.suite_reference(n, progress=True)[2].mean()) for n in m.SUITE]"
 
 clean:
 	rm -rf $(VENV) target out

@@ -128,6 +128,92 @@ def energy_table(rng, distribution):
     return alphas, thetas, table
 
 
+def direction(theta_deg, phi=0.0):
+    t = np.radians(theta_deg)
+    return np.array([np.sin(t) * np.cos(phi), np.sin(t) * np.sin(phi), np.cos(t)])
+
+
+def reference_section():
+    """The Monte Carlo reference against closed forms, Mitsuba 3, and its energy bookkeeping."""
+    out = ["", "## Monte Carlo reference evaluator", "",
+           "`Stack.reference` (NEE estimator of f, MIS at rough tops) and `Stack.albedo(model='reference')` "
+           "(brute-force walk). Differences are given in standard errors (SE) of the estimate.", "",
+           "### Closed forms", "",
+           "| check | estimate | exact | difference / SE |", "|---|---|---|---:|"]
+    albedo = np.array([0.9, 0.5, 0.1])
+    plastic = lamina.materials.plastic(albedo, ior=1.5)
+    for ti, to, po in ((0, 50, 1.0), (45, 10, 3.0), (80, 85, 2.0)):
+        f, se = plastic.reference(direction(ti), direction(to, po), samples=400_000, seed=1)
+        exact = plastic.eval(direction(ti), direction(to, po))
+        out.append(f"| smooth coat over Lambert, f, θi={ti}° θo={to}° | {np.round(f, 5).tolist()} | "
+                   f"{np.round(exact, 5).tolist()} | {np.max(np.abs(f - exact) / se):.2f} |")
+    eta, tau, rho = 1.5, 0.5, 0.8
+    slab = lamina.Stack([lamina.Dielectric(eta, thickness=2.0, sigma_a=tau / 2), lamina.Diffuse(rho)])
+    mu = (np.arange(1_000_000) + 0.5) / 1_000_000
+    f_int = lamina.optics.fresnel_dielectric(mu, 1 / eta)
+    esc, back = np.mean(2 * mu * np.exp(-tau / mu) * (1 - f_int)), np.mean(2 * mu * np.exp(-2 * tau / mu) * f_int)
+    for ti in (0, 50, 85):
+        wi = direction(ti)
+        fi = float(lamina.optics.fresnel_dielectric(wi[2], eta))
+        mu_t = np.sqrt(1 - (1 - wi[2] ** 2) / eta**2)
+        exact = fi + (1 - fi) * np.exp(-tau / mu_t) * rho * esc / (1 - rho * back)
+        a, se = slab.albedo(wi, "reference", samples=1_000_000, seed=2)
+        out.append(f"| absorbing slab (τ = 0.5) under a smooth coat, albedo, θi={ti}° | {a[0]:.5f} | {exact:.5f} | "
+                   f"{abs(a[0] - exact) / se[0]:.2f} |")
+    for name, layers in (("smooth coat", [lamina.Dielectric(1.5), lamina.Diffuse(1.0)]),
+                         ("two scattering slabs", [lamina.Dielectric(1.5, thickness=1, sigma_s=3, g=0.6),
+                                                   lamina.Dielectric(1.3, thickness=0.5, sigma_s=1, g=-0.3),
+                                                   lamina.Diffuse(1.0)])):
+        a, se = lamina.Stack(layers).albedo(direction(35), "reference", samples=1_000_000, seed=3)
+        out.append(f"| white furnace: {name} over white Lambert, albedo | {a[0]:.6f} ± {se[0]:.1e} | 1 | "
+                   f"{abs(a[0] - 1) / max(se[0], 1e-300):.2f} |")
+    conductor = lamina.Stack([lamina.Conductor(0.2, 3.6, roughness=(0.15, 0.6), angle=0.4)])
+    for ti in (0, 60, 85):
+        a, se = conductor.albedo(direction(ti, 0.3), "reference", samples=1_000_000, seed=4)
+        q = conductor.albedo(direction(ti, 0.3))
+        out.append(f"| single rough conductor, albedo vs quadrature of f, θi={ti}° | {a[0]:.5f} | {q[0]:.5f} | "
+                   f"{abs(a[0] - q[0]) / se[0]:.2f} |")
+    rhos = np.array([0.8, 0.4, 0.1])
+    wis = [direction(t) for t in (0, 30, 60, 80)]
+    wos = [direction(t, p) for t in (0, 30, 60, 80) for p in (np.pi / 4, np.pi)]
+    WI = np.array([w for w in wis for _ in wos])
+    WO = np.array([o for _ in wis for o in wos])
+    f, se = plastic.reference(WI, WO, samples=400_000, seed=5, progress=False)
+    ref = mitsuba_f({"type": "plastic", "int_ior": 1.5, "ext_ior": 1.0, "nonlinear": True,
+                     "diffuse_reflectance": rgb(albedo)}, WI, WO)
+    out += ["", "### Against Mitsuba 3", "",
+            f"Mitsuba `plastic` (nonlinear) vs the reference on 4 x 8 direction pairs (400k paths each): max |Δ|/f = "
+            f"{np.max(np.abs(ref - f) / f):.2%} (issue tolerance 1%), max |Δ|/SE = {np.max(np.abs(ref - f) / se):.2f}, "
+            f"max SE/f = {np.max(se / f):.2%}; Mitsuba's F̄_int fit (above) accounts for up to 0.1%.", "",
+            "Mitsuba `roughplastic` (GGX, separable Smith, nonlinear, η = 1.5, ρ = (0.8, 0.4, 0.1)) vs the reference "
+            "(same G2) on the same pairs, 100k paths each. roughplastic approximates internal scattering by a "
+            "diffuse lobe scaled by tabulated rough transmittances, so it is not exact:", "",
+            "| alpha | median abs(Δ)/f | max abs(Δ)/f | max reference SE / f |", "|---:|---:|---:|---:|"]
+    for alpha in (0.05, 0.1, 0.3, 0.5):
+        st = lamina.Stack([lamina.Dielectric(1.5, alpha), lamina.Diffuse(rhos)])
+        f, se = st.reference(WI, WO, samples=100_000, g2="separable", seed=6, progress=False)
+        ref = mitsuba_f({"type": "roughplastic", "distribution": "ggx", "alpha": alpha, "int_ior": 1.5,
+                         "ext_ior": 1.0, "nonlinear": True, "diffuse_reflectance": rgb(rhos)}, WI, WO)
+        rel = np.abs(ref - f) / f
+        out.append(f"| {alpha} | {np.median(rel):.2%} | {rel.max():.2%} | {np.max(se / f):.2%} |")
+    thetas = (0, 30, 60, 80, 87)
+    out += ["", "### Energy lost by rough interfaces (single-scattering microfacets)", "",
+            "1 − albedo of a rough GGX coat (η = 1.5, no absorption) over a white Lambertian base: the energy that "
+            "the microfacet interface loses (brute force, 400k paths, SE ≤ 1e-3).", "",
+            "| alpha \\ θi | " + " | ".join(f"{t}°" for t in thetas) + " |", "|---:|" + "---:|" * len(thetas)]
+    for alpha in (0.05, 0.1, 0.3, 0.5, 0.8, 1.0):
+        st = lamina.Stack([lamina.Dielectric(1.5, alpha), lamina.Diffuse(1.0)])
+        row = [1 - st.albedo(direction(t), "reference", samples=400_000, seed=7)[0][0] for t in thetas]
+        out.append(f"| {alpha} | " + " | ".join(f"{v:.4f}" for v in row) + " |")
+    out += ["", "### The material suite (`lamina.materials.SUITE`): reference albedo (green channel)", "",
+            "| material | " + " | ".join(f"{t}°" for t in thetas) + " |", "|---|" + "---:|" * len(thetas)]
+    for name in lamina.materials.SUITE:
+        st = lamina.materials.suite(name)
+        row = [st.albedo(direction(t), "reference", samples=200_000, seed=8)[0][1] for t in thetas]
+        out.append(f"| {name} | " + " | ".join(f"{v:.4f}" for v in row) + " |")
+    return out
+
+
 def main():
     rng = np.random.default_rng(7)
     out = ["# Validation", "", "Generated by `scripts/validation_report.py` (`make validation`); do not edit by hand.",
@@ -158,9 +244,9 @@ def main():
                 "| alpha \\ θi | " + " | ".join(f"{x}°" for x in thetas) + " |", "|---:|" + "---:|" * len(thetas)]
         for a, row in zip(alphas, t):
             out.append(f"| {a} | " + " | ".join(f"{v:.4f}" for v in row) + " |")
+    out += reference_section()
     path = ROOT / "docs" / "validation.md"
     path.write_text("\n".join(out) + "\n")
-    print("\n".join(out))
     print(f"wrote {path}", file=sys.stderr)
 
 

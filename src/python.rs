@@ -496,6 +496,9 @@ fn interface_bsdf<'py>(
     })
 }
 
+/// Per-channel sums and sums of squares of Monte Carlo estimates, and truncated-path counts per channel.
+type Sums = (Vec<Vec<f64>>, Vec<Vec<f64>>, Vec<u64>);
+
 /// Brute-force random walk from one direction `wi` (unit, z > 0) over paths `first..first + samples`, tallying the
 /// escaping energy in `n_theta` x `n_phi` bins uniform in (θo, φo) (1 x 1: the albedo). Returns the per-channel
 /// sums, sums of squares (each (channels, bins)) and truncated-path counts, to be merged by the caller.
@@ -514,7 +517,7 @@ fn reference_tally<'py>(
     n_phi: usize,
     distribution: &str,
     g2: &str,
-) -> PyResult<(Vec<Vec<f64>>, Vec<Vec<f64>>, Vec<u64>)> {
+) -> PyResult<Sums> {
     let stack = parse_stack(layers, ext_ior)?;
     let (dist, g2) = (parse_distribution(distribution)?, parse_g2(g2)?);
     let wi = DVec3::from_array(wi);
@@ -549,7 +552,7 @@ fn reference_tally<'py>(
 /// number of truncated paths per channel.
 #[pyfunction]
 #[pyo3(signature = (layers, ext_ior, wi, wo, first, samples, seed, distribution="ggx", g2="height_correlated"))]
-#[allow(clippy::too_many_arguments, clippy::type_complexity)]
+#[allow(clippy::too_many_arguments)]
 fn reference_f<'py>(
     py: Python<'py>,
     layers: &Bound<'py, PyList>,
@@ -561,7 +564,7 @@ fn reference_f<'py>(
     seed: u64,
     distribution: &str,
     g2: &str,
-) -> PyResult<(Vec<Vec<f64>>, Vec<Vec<f64>>, Vec<u64>)> {
+) -> PyResult<Sums> {
     let stack = parse_stack(layers, ext_ior)?;
     let (dist, g2) = (parse_distribution(distribution)?, parse_g2(g2)?);
     if wi.len() != wo.len() || samples == 0 {

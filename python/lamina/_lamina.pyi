@@ -6,6 +6,7 @@ from numpy.typing import NDArray
 Array = NDArray[np.float32] | NDArray[np.float64]
 
 MODELS: list[str]
+REFERENCE_MAX_DEPTH: int
 __version__: str
 
 def check_stack(layers: list[dict], ext_ior: float, model: str | None = None) -> int: ...
@@ -23,3 +24,9 @@ def sample_visible(wi: Array, u: Array, alpha_x: float, alpha_y: float, angle: f
 def pdf_visible(wi: Array, m: Array, alpha_x: float, alpha_y: float, angle: float, distribution: str) -> Array: ...
 def interface_bsdf(kind: str, wi: Array, wo: Array, eta: list[float], k: list[float], alpha_x: float, alpha_y: float,
                    angle: float, distribution: str, g2: str) -> Array: ...
+def reference_tally(layers: list[dict], ext_ior: float, wi: list[float], first: int, samples: int, seed: int,
+                    n_theta: int = 1, n_phi: int = 1, distribution: str = "ggx", g2: str = "height_correlated"
+                    ) -> tuple[list[list[float]], list[list[float]], list[int]]: ...
+def reference_f(layers: list[dict], ext_ior: float, wi: list[list[float]], wo: list[list[float]], first: int,
+                samples: int, seed: int, distribution: str = "ggx", g2: str = "height_correlated"
+                ) -> tuple[list[list[float]], list[list[float]], list[int]]: ...
