@@ -16,8 +16,10 @@ import numpy as np
 
 from . import _lamina
 
-#: Paths per call into Rust (fixed: it is part of what makes results reproducible).
+#: Paths per direction and call into Rust (fixed: the order of the partial sums is part of what makes results
+#: reproducible), and the most (pair x path) estimates per call, which bounds how long Ctrl-C waits.
 CHUNK = 1 << 18
+WORK_PER_CALL = 1 << 20
 
 
 def _progress(total: int, progress):
@@ -47,22 +49,28 @@ def f_estimate(layers, ext_ior, wi_rows, wo_rows, samples: int, seed: int, progr
     """NEE estimate of f for each (wi, wo) row pair: mean and standard error, (pairs, channels) each."""
     _check(samples, seed)
     bar = _progress(len(wi_rows) * samples, progress)
-    s = s2 = None
-    truncated = 0
     wi_list, wo_list = wi_rows.tolist(), wo_rows.tolist()
+    pairs_per_call = max(1, WORK_PER_CALL // min(samples, CHUNK))
+    sums = []
+    truncated = 0
     try:
-        for first in range(0, samples, CHUNK):
-            n = min(CHUNK, samples - first)
-            a, b, t = _lamina.reference_f(layers, ext_ior, wi_list, wo_list, first, n, int(seed), **options)
-            a, b = np.asarray(a), np.asarray(b)
-            s, s2 = (a, b) if s is None else (s + a, s2 + b)
-            truncated += int(np.sum(t))
-            if bar is not None:
-                bar.update(n * len(wi_list))
+        for lo in range(0, len(wi_list), pairs_per_call):
+            hi = min(lo + pairs_per_call, len(wi_list))
+            s = s2 = 0.0
+            for first in range(0, samples, CHUNK):
+                n = min(CHUNK, samples - first)
+                a, b, t = _lamina.reference_f(layers, ext_ior, wi_list[lo:hi], wo_list[lo:hi], first, n, int(seed),
+                                              **options)
+                s, s2 = s + np.asarray(a), s2 + np.asarray(b)
+                truncated += int(np.sum(t))
+                if bar is not None:
+                    bar.update(n * (hi - lo))
+            sums.append((s, s2))
     finally:
         if bar is not None:
             bar.close()
     _finish(truncated)
+    s, s2 = np.concatenate([a for a, _ in sums]), np.concatenate([b for _, b in sums])
     mean = s / samples
     return mean, np.sqrt(np.maximum(s2 / samples - mean**2, 0.0) / (samples - 1))
 
