@@ -292,3 +292,22 @@ def test_eval_reference_and_cache(tmp_path, monkeypatch):
     keys = {cache_key(stack, wi, wo, 3000, 0), cache_key(stack, wi, wo, 3001, 0), cache_key(stack, wi, wo, 3000, 1),
             cache_key(lamina.materials.suite("three-layer"), wi, wo, 3000, 0), cache_key(stack, wo, wi, 3000, 0)}
     assert len(keys) == 5
+
+
+def test_ctrl_c_stops_a_long_run_cleanly():
+    """SIGINT during a long reference run raises KeyboardInterrupt in Python between bounded Rust calls (each at
+    most reference.WORK_PER_CALL estimates) instead of running to the end."""
+    import signal
+    import time
+
+    code = ("import numpy as np, lamina, sys; s = lamina.materials.suite('three-layer'); print('ready', flush=True); "
+            "s.reference(np.array([0.3, 0, 0.95]), np.array([[0.1, 0.2, 0.97]] * 8), samples=10**9, progress=False)")
+    proc = subprocess.Popen([sys.executable, "-c", code], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    assert proc.stdout.readline().strip() == "ready"
+    time.sleep(1.0)
+    proc.send_signal(signal.SIGINT)
+    try:
+        _, err = proc.communicate(timeout=60)  # the full run would take hours
+    finally:
+        proc.kill()
+    assert proc.returncode != 0 and "KeyboardInterrupt" in err
