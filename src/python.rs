@@ -357,59 +357,47 @@ fn fresnel_diffuse_reflectance<'py>(py: Python<'py>, eta: &Bound<'py, PyAny>) ->
     scalar_kernel(py, ["eta"], [eta], |[e]| fresnel::diffuse_reflectance(e))
 }
 
-/// The microfacet distribution described by the Python keyword arguments.
-fn microfacet(alpha_x: f64, alpha_y: f64, angle: f64, distribution: &str) -> PyResult<Microfacet> {
-    for (name, a) in [("alpha_x", alpha_x), ("alpha_y", alpha_y)] {
-        if !(a > 0.0 && a <= 1.0) {
-            return Err(PyValueError::new_err(format!("{name} (roughness) must be in (0, 1], got {a}")));
+/// A microfacet distribution as Python passes it: (alpha_x, alpha_y, angle, distribution).
+#[derive(FromPyObject)]
+struct MicrofacetSpec(f64, f64, f64, String);
+
+impl MicrofacetSpec {
+    fn build(&self) -> PyResult<Microfacet> {
+        let MicrofacetSpec(alpha_x, alpha_y, angle, ref distribution) = *self;
+        for (name, a) in [("alpha_x", alpha_x), ("alpha_y", alpha_y)] {
+            if !(a > 0.0 && a <= 1.0) {
+                return Err(PyValueError::new_err(format!("{name} (roughness) must be in (0, 1], got {a}")));
+            }
         }
+        if !angle.is_finite() {
+            return Err(PyValueError::new_err(format!("angle must be finite radians, got {angle}")));
+        }
+        Ok(Microfacet::new(parse_distribution(distribution)?, alpha_x, alpha_y, angle))
     }
-    if !angle.is_finite() {
-        return Err(PyValueError::new_err(format!("angle must be finite radians, got {angle}")));
-    }
-    Ok(Microfacet::new(parse_distribution(distribution)?, alpha_x, alpha_y, angle))
 }
 
 #[pyfunction]
-fn microfacet_d<'py>(
-    py: Python<'py>,
-    m: &Bound<'py, PyAny>,
-    alpha_x: f64,
-    alpha_y: f64,
-    angle: f64,
-    distribution: &str,
-) -> PyResult<Bound<'py, PyAny>> {
-    let mf = microfacet(alpha_x, alpha_y, angle, distribution)?;
+fn microfacet_d<'py>(py: Python<'py>, m: &Bound<'py, PyAny>, mf: MicrofacetSpec) -> PyResult<Bound<'py, PyAny>> {
+    let mf = mf.build()?;
     batch(py, &[("m", m, Kind::Direction)], 1, |r, o| o[0] = mf.d(vec3(&r[0])))
 }
 
 #[pyfunction]
-fn microfacet_lambda<'py>(
-    py: Python<'py>,
-    w: &Bound<'py, PyAny>,
-    alpha_x: f64,
-    alpha_y: f64,
-    angle: f64,
-    distribution: &str,
-) -> PyResult<Bound<'py, PyAny>> {
-    let mf = microfacet(alpha_x, alpha_y, angle, distribution)?;
+fn microfacet_lambda<'py>(py: Python<'py>, w: &Bound<'py, PyAny>, mf: MicrofacetSpec) -> PyResult<Bound<'py, PyAny>> {
+    let mf = mf.build()?;
     batch(py, &[("w", w, Kind::Direction)], 1, |r, o| o[0] = mf.lambda(vec3(&r[0])))
 }
 
 #[pyfunction]
-#[allow(clippy::too_many_arguments)]
 fn microfacet_g2<'py>(
     py: Python<'py>,
     wi: &Bound<'py, PyAny>,
     wo: &Bound<'py, PyAny>,
     m: &Bound<'py, PyAny>,
-    alpha_x: f64,
-    alpha_y: f64,
-    angle: f64,
-    distribution: &str,
+    mf: MicrofacetSpec,
     g2: &str,
 ) -> PyResult<Bound<'py, PyAny>> {
-    let (mf, form) = (microfacet(alpha_x, alpha_y, angle, distribution)?, parse_g2(g2)?);
+    let (mf, form) = (mf.build()?, parse_g2(g2)?);
     let inputs = [("wi", wi, Kind::Direction), ("wo", wo, Kind::Direction), ("m", m, Kind::Direction)];
     batch(py, &inputs, 1, |r, o| o[0] = mf.g2(form, vec3(&r[0]), vec3(&r[1]), vec3(&r[2])))
 }
@@ -419,12 +407,9 @@ fn sample_visible<'py>(
     py: Python<'py>,
     wi: &Bound<'py, PyAny>,
     u: &Bound<'py, PyAny>,
-    alpha_x: f64,
-    alpha_y: f64,
-    angle: f64,
-    distribution: &str,
+    mf: MicrofacetSpec,
 ) -> PyResult<Bound<'py, PyAny>> {
-    let mf = microfacet(alpha_x, alpha_y, angle, distribution)?;
+    let mf = mf.build()?;
     batch(py, &[("wi", wi, Kind::Direction), ("u", u, Kind::Values(2))], 3, |r, o| {
         let wi = vec3(&r[0]);
         if wi.z > 0.0 {
@@ -438,12 +423,9 @@ fn pdf_visible<'py>(
     py: Python<'py>,
     wi: &Bound<'py, PyAny>,
     m: &Bound<'py, PyAny>,
-    alpha_x: f64,
-    alpha_y: f64,
-    angle: f64,
-    distribution: &str,
+    mf: MicrofacetSpec,
 ) -> PyResult<Bound<'py, PyAny>> {
-    let mf = microfacet(alpha_x, alpha_y, angle, distribution)?;
+    let mf = mf.build()?;
     batch(py, &[("wi", wi, Kind::Direction), ("m", m, Kind::Direction)], 1, |r, o| {
         o[0] = mf.pdf_visible(vec3(&r[0]), vec3(&r[1]))
     })
@@ -459,13 +441,10 @@ fn interface_bsdf<'py>(
     wo: &Bound<'py, PyAny>,
     eta: Vec<f64>,
     k: Vec<f64>,
-    alpha_x: f64,
-    alpha_y: f64,
-    angle: f64,
-    distribution: &str,
+    mf: MicrofacetSpec,
     g2: &str,
 ) -> PyResult<Bound<'py, PyAny>> {
-    let (mf, form) = (microfacet(alpha_x, alpha_y, angle, distribution)?, parse_g2(g2)?);
+    let (mf, form) = (mf.build()?, parse_g2(g2)?);
     if eta.is_empty() || eta.len() != k.len() {
         return Err(PyValueError::new_err(format!(
             "eta and k need the same number (> 0) of channels, got {} and {}",

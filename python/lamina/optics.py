@@ -40,40 +40,41 @@ def fresnel_diffuse_reflectance(eta) -> np.ndarray:
     return _scalar(_lamina.fresnel_diffuse_reflectance, eta=eta)
 
 
-def _alpha(roughness, angle, distribution):
+def _mf(roughness, angle, distribution) -> tuple:
+    """The (alpha_x, alpha_y, angle, distribution) spec the Rust bindings take."""
     ax, ay = _roughness(roughness)
-    return dict(alpha_x=ax, alpha_y=ay, angle=float(angle), distribution=distribution)
+    return ax, ay, float(angle), str(distribution)
 
 
 def ndf(m, roughness, angle=0.0, distribution="ggx") -> np.ndarray:
     """Microfacet normal distribution D(m) (1/sr); roughness in (0, 1], scalar or (alpha_x, alpha_y)."""
     (m,) = broadcast(m=(m, 3))
-    return _lamina.microfacet_d(m, **_alpha(roughness, angle, distribution))[..., 0]
+    return _lamina.microfacet_d(m, _mf(roughness, angle, distribution))[..., 0]
 
 
 def smith_lambda(w, roughness, angle=0.0, distribution="ggx") -> np.ndarray:
     """Smith Λ(w) of the distribution."""
     (w,) = broadcast(w=(w, 3))
-    return _lamina.microfacet_lambda(w, **_alpha(roughness, angle, distribution))[..., 0]
+    return _lamina.microfacet_lambda(w, _mf(roughness, angle, distribution))[..., 0]
 
 
 def masking_shadowing(wi, wo, m, roughness, angle=0.0, distribution="ggx", g2="height_correlated") -> np.ndarray:
     """G2(wi, wo, m): 'separable', 'height_correlated' or 'v_cavity'."""
     wi, wo, m = broadcast(wi=(wi, 3), wo=(wo, 3), m=(m, 3))
-    return _lamina.microfacet_g2(wi, wo, m, g2=g2, **_alpha(roughness, angle, distribution))[..., 0]
+    return _lamina.microfacet_g2(wi, wo, m, _mf(roughness, angle, distribution), g2)[..., 0]
 
 
 def sample_visible_normal(wi, u, roughness, angle=0.0, distribution="ggx") -> np.ndarray:
     """Samples microfacet normals m (..., 3) visible from wi given uniform numbers u (..., 2) in [0, 1)
     (Heitz 2018 for GGX, Heitz & d'Eon 2014 for Beckmann); zero vectors where wi is below the horizon."""
     wi, u = broadcast(wi=(wi, 3), u=(u, 2))
-    return _lamina.sample_visible(wi, u, **_alpha(roughness, angle, distribution))
+    return _lamina.sample_visible(wi, u, _mf(roughness, angle, distribution))
 
 
 def visible_normal_pdf(wi, m, roughness, angle=0.0, distribution="ggx") -> np.ndarray:
     """Density (1/sr) of `sample_visible_normal`: G1(wi, m) max(0, wi·m) D(m) / cos θi."""
     wi, m = broadcast(wi=(wi, 3), m=(m, 3))
-    return _lamina.pdf_visible(wi, m, **_alpha(roughness, angle, distribution))[..., 0]
+    return _lamina.pdf_visible(wi, m, _mf(roughness, angle, distribution))[..., 0]
 
 
 def _channel_list(name, x) -> list[float]:
@@ -86,7 +87,7 @@ def rough_conductor(wi, wo, eta, k, roughness, angle=0.0, distribution="ggx", g2
     if len(eta) != len(k):
         raise ValueError(f"eta and k must have the same number of channels, got {len(eta)} and {len(k)}")
     wi, wo = broadcast(wi=(wi, 3), wo=(wo, 3))
-    return _lamina.interface_bsdf("conductor", wi, wo, eta, k, g2=g2, **_alpha(roughness, angle, distribution))
+    return _lamina.interface_bsdf("conductor", wi, wo, eta, k, _mf(roughness, angle, distribution), g2)
 
 
 def rough_dielectric(wi, wo, eta, roughness, angle=0.0, distribution="ggx", g2="height_correlated") -> np.ndarray:
@@ -94,5 +95,4 @@ def rough_dielectric(wi, wo, eta, roughness, angle=0.0, distribution="ggx", g2="
     `eta` = η_below/η_above (one output channel per entry), light arriving along wi and leaving along wo."""
     eta = _channel_list("eta", eta)
     wi, wo = broadcast(wi=(wi, 3), wo=(wo, 3))
-    return _lamina.interface_bsdf("dielectric", wi, wo, eta, [0.0] * len(eta), g2=g2,
-                                  **_alpha(roughness, angle, distribution))
+    return _lamina.interface_bsdf("dielectric", wi, wo, eta, [0.0] * len(eta), _mf(roughness, angle, distribution), g2)
