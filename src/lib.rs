@@ -11,6 +11,7 @@ pub mod optics;
 pub mod reference;
 pub mod sampling;
 pub mod stack;
+pub mod tables;
 
 #[cfg(feature = "python")]
 mod python;

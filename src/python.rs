@@ -285,7 +285,7 @@ fn check_stack(layers: &Bound<'_, PyList>, ext_ior: f64, model: Option<&str>) ->
 
 /// f(wi, wo) of a stack under a model: (..., channels).
 #[pyfunction]
-#[pyo3(signature = (layers, ext_ior, model, wi, wo, distribution="ggx", g2="height_correlated", fresnel="exact"))]
+#[pyo3(signature = (layers, ext_ior, model, wi, wo, distribution="ggx", g2="height_correlated", fresnel="exact", symmetric=false))]
 #[allow(clippy::too_many_arguments)]
 fn eval_stack<'py>(
     py: Python<'py>,
@@ -297,12 +297,14 @@ fn eval_stack<'py>(
     distribution: &str,
     g2: &str,
     fresnel: &str,
+    symmetric: bool,
 ) -> PyResult<Bound<'py, PyAny>> {
     let stack = parse_stack(layers, ext_ior)?;
     let opts = Options {
         distribution: parse_distribution(distribution)?,
         g2: parse_g2(g2)?,
         fresnel: parse_fresnel(fresnel)?,
+        symmetric,
     };
     let model = models::prepare(model, &stack, &opts)?;
     batch(py, &[("wi", wi, Kind::Direction), ("wo", wo, Kind::Direction)], stack.channels, |r, o| {
@@ -475,6 +477,26 @@ fn interface_bsdf<'py>(
     })
 }
 
+/// Lobe energies (n, lobes, channels) and roughnesses (n, lobes).
+type Lobes = (Vec<Vec<Vec<f64>>>, Vec<Vec<f64>>);
+
+/// Belcour 2018 lobes for viewing cosines `cos_theta`: energies (n, lobes, channels) and GGX roughnesses (n, lobes).
+#[pyfunction]
+fn belcour_lobes(layers: &Bound<'_, PyList>, ext_ior: f64, cos_theta: Vec<f64>) -> PyResult<Lobes> {
+    let stack = parse_stack(layers, ext_ior)?;
+    let p = models::belcour::prepare(&stack, &Options::default())?;
+    if let Some(c) = cos_theta.iter().find(|c| !(c.is_finite() && **c > 0.0 && **c <= 1.0)) {
+        return Err(PyValueError::new_err(format!(
+            "wi must point above the surface (cos θ in (0, 1]), got cos θ = {c}"
+        )));
+    }
+    let lobes: Vec<_> = cos_theta.iter().map(|&c| p.lobes(c)).collect();
+    Ok((
+        lobes.iter().map(|l| l.iter().map(|(e, _)| e.clone()).collect()).collect(),
+        lobes.iter().map(|l| l.iter().map(|(_, a)| *a).collect()).collect(),
+    ))
+}
+
 /// Per-channel sums and sums of squares of Monte Carlo estimates, and truncated-path counts per channel.
 type Sums = (Vec<Vec<f64>>, Vec<Vec<f64>>, Vec<u64>);
 
@@ -591,6 +613,7 @@ fn _lamina(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(interface_bsdf, m)?)?;
     m.add_function(wrap_pyfunction!(reference_tally, m)?)?;
     m.add_function(wrap_pyfunction!(reference_f, m)?)?;
+    m.add_function(wrap_pyfunction!(belcour_lobes, m)?)?;
     m.add("REFERENCE_MAX_DEPTH", crate::reference::MAX_DEPTH)?;
     Ok(())
 }

@@ -126,7 +126,8 @@ class Stack:
         return [layer._resolve(wavelengths) for layer in self.layers]
 
     def eval(self, wi, wo, model: str = "microfacet", *, wavelengths=None, distribution: str = "ggx",
-             g2: str = "height_correlated", fresnel: str = "exact", samples: int = 10_000, seed: int = 0) -> np.ndarray:
+             g2: str = "height_correlated", fresnel: str = "exact", symmetric: bool = False, samples: int = 10_000,
+             seed: int = 0) -> np.ndarray:
         """The BRDF f(wi, wo), not multiplied by cos θo.
 
         wi, wo: directions (..., 3) in the local frame (z = normal), both pointing away from the surface; they need
@@ -134,15 +135,16 @@ class Stack:
         Returns (..., 3) linear RGB channels, or (..., len(wavelengths)) with `wavelengths` (nm). float32 when both
         inputs are float32, float64 otherwise. Units: 1/sr.
         Options: `distribution` 'ggx' | 'beckmann'; `g2` 'height_correlated' (default) | 'separable' (Mitsuba 3) |
-        'v_cavity'; `fresnel` 'exact' | 'schlick' | 'lazanyi' (conductors). model="reference" returns the mean of
-        `Stack.reference` with `samples` paths per pair (exact Fresnel)."""
+        'v_cavity'; `fresnel` 'exact' | 'schlick' | 'lazanyi' (conductors); `symmetric` (model="belcour"):
+        Belcour's reciprocal variant. model="reference" returns the mean of `Stack.reference` with `samples` paths
+        per pair (exact Fresnel)."""
         if model == "reference":
             return self.reference(wi, wo, wavelengths=wavelengths, samples=samples, seed=seed,
                                   distribution=distribution, g2=g2)[0]
         wl = _wavelengths(wavelengths)
         wi, wo = broadcast(wi=(wi, 3), wo=(wo, 3))
         return _lamina.eval_stack(self._resolve(wl), self.ext_ior, model, wi, wo,
-                                  distribution=distribution, g2=g2, fresnel=fresnel)
+                                  distribution=distribution, g2=g2, fresnel=fresnel, symmetric=bool(symmetric))
 
 
     def reference(self, wi, wo, *, wavelengths=None, samples: int = 100_000, seed: int = 0, progress=None,
@@ -158,6 +160,20 @@ class Stack:
                                seed, progress=progress, distribution=distribution, g2=g2)
         shape = wi.shape[:-1] + (mean.shape[-1],)
         return mean.reshape(shape), err.reshape(shape)
+
+    def lobes(self, wi, model: str = "belcour", *, wavelengths=None) -> dict:
+        """The lobes a statistical model builds for viewing direction(s) wi (..., 3): {"energy": (..., L, channels),
+        "roughness": (..., L)}, one GGX lobe per interface (L = interfaces down to the first opaque one); all lobes
+        are centred on the mirror direction. Only model="belcour" (isotropic) has lobes in this version."""
+        if model != "belcour":
+            raise ValueError(f"model must be 'belcour' for lobes, got {model!r}")
+        wl = _wavelengths(wavelengths)
+        (wi,) = broadcast(wi=(wi, 3))
+        rows = _unit_rows("wi", wi)
+        energy, roughness = _lamina.belcour_lobes(self._resolve(wl), self.ext_ior, rows[:, 2].tolist())
+        energy, roughness = np.asarray(energy), np.asarray(roughness)
+        return {"energy": energy.reshape(wi.shape[:-1] + energy.shape[1:]),
+                "roughness": roughness.reshape(wi.shape[:-1] + roughness.shape[1:])}
 
     def albedo(self, wi, model: str = "microfacet", *, wavelengths=None, samples: int = 100_000, seed: int = 0,
                progress=None, distribution: str = "ggx", g2: str = "height_correlated", fresnel: str = "exact"):

@@ -2,6 +2,7 @@
 //! options (per-channel constants, distributions, tables), then evaluated for many direction pairs; each
 //! evaluation writes one value per channel.
 
+pub mod belcour;
 pub mod microfacet;
 
 use crate::optics::fresnel::FresnelForm;
@@ -10,30 +11,39 @@ use crate::stack::{value_error, Result, Stack};
 use glam::DVec3;
 
 /// Names accepted by `model=`, in the order `lamina.MODELS` lists them.
-pub const MODELS: &[&str] = &["microfacet"];
+pub const MODELS: &[&str] = &["microfacet", "belcour"];
 
 #[derive(Clone, Copy, Debug)]
 pub struct Options {
     pub distribution: Distribution,
     pub g2: G2Form,
     pub fresnel: FresnelForm,
+    /// Belcour's symmetric (reciprocal) variant: statistics at |wo·h| instead of cos θo.
+    pub symmetric: bool,
 }
 
 impl Default for Options {
     fn default() -> Self {
-        Options { distribution: Distribution::Ggx, g2: G2Form::HeightCorrelated, fresnel: FresnelForm::Exact }
+        Options {
+            distribution: Distribution::Ggx,
+            g2: G2Form::HeightCorrelated,
+            fresnel: FresnelForm::Exact,
+            symmetric: false,
+        }
     }
 }
 
 /// A model prepared for one stack: evaluates f(wi, wo) for unit directions in the local frame.
 pub enum Evaluator {
     Microfacet(microfacet::Prepared),
+    Belcour(belcour::Prepared),
 }
 
 /// Prepares `model` for `stack`, or explains why the model cannot represent the stack.
 pub fn prepare(model: &str, stack: &Stack, opts: &Options) -> Result<Evaluator> {
     match model {
         "microfacet" => Ok(Evaluator::Microfacet(microfacet::prepare(stack, opts)?)),
+        "belcour" => Ok(Evaluator::Belcour(belcour::prepare(stack, opts)?)),
         _ => value_error(format!("model must be one of {MODELS:?}, got {model:?}")),
     }
 }
@@ -43,6 +53,7 @@ impl Evaluator {
     pub fn eval(&self, wi: DVec3, wo: DVec3, out: &mut [f64]) {
         match self {
             Evaluator::Microfacet(p) => p.eval(wi, wo, out),
+            Evaluator::Belcour(p) => p.eval(wi, wo, out),
         }
     }
 }
