@@ -285,7 +285,7 @@ fn check_stack(layers: &Bound<'_, PyList>, ext_ior: f64, model: Option<&str>) ->
 
 /// f(wi, wo) of a stack under a model: (..., channels).
 #[pyfunction]
-#[pyo3(signature = (layers, ext_ior, model, wi, wo, distribution="ggx", g2="height_correlated", fresnel="exact", symmetric=false))]
+#[pyo3(signature = (layers, ext_ior, model, wi, wo, distribution="ggx", g2="height_correlated", fresnel="exact", symmetric=false, cosines="frozen", jacobian="j12", energy="fgd"))]
 #[allow(clippy::too_many_arguments)]
 fn eval_stack<'py>(
     py: Python<'py>,
@@ -298,13 +298,26 @@ fn eval_stack<'py>(
     g2: &str,
     fresnel: &str,
     symmetric: bool,
+    cosines: &str,
+    jacobian: &str,
+    energy: &str,
 ) -> PyResult<Bound<'py, PyAny>> {
     let stack = parse_stack(layers, ext_ior)?;
+    let choice = |name: &str, value: &str, a: &str, b: &str| match value {
+        v if v == a => Ok(false),
+        v if v == b => Ok(true),
+        v => Err(PyValueError::new_err(format!("{name} must be {a:?} or {b:?}, got {v:?}"))),
+    };
     let opts = Options {
         distribution: parse_distribution(distribution)?,
         g2: parse_g2(g2)?,
         fresnel: parse_fresnel(fresnel)?,
         symmetric,
+        belcour: models::belcour::Variant {
+            real_cosines: choice("cosines", cosines, "frozen", "real")?,
+            jacobian_j21: choice("jacobian", jacobian, "j12", "j21")?,
+            fresnel_energy: choice("energy", energy, "fgd", "fresnel")?,
+        },
     };
     let model = models::prepare(model, &stack, &opts)?;
     batch(py, &[("wi", wi, Kind::Direction), ("wo", wo, Kind::Direction)], stack.channels, |r, o| {

@@ -67,6 +67,18 @@ def test_albedo_at_most_one(stack, theta):
     assert np.all(a <= 1 + 1e-3), a  # 1e-3: the midpoint quadrature of Stack.albedo
 
 
+def test_variant_options():
+    stack = lamina.materials.suite("three-layer")
+    wi, wo = np.array([0.3, 0.0, 0.95]), np.array([-0.2, 0.1, 0.97])
+    base = stack.eval(wi, wo, "belcour")
+    for kw in ({"cosines": "real"}, {"jacobian": "j21"}, {"energy": "fresnel"}):
+        f = stack.eval(wi, wo, "belcour", **kw)
+        assert np.all(np.isfinite(f)) and not np.array_equal(f, base), kw
+    for kw, match in (({"cosines": "paper"}, "cosines"), ({"jacobian": "J"}, "jacobian"), ({"energy": "x"}, "energy")):
+        with pytest.raises(ValueError, match=match):
+            stack.eval(wi, wo, "belcour", **kw)
+
+
 def test_anisotropic_stacks_are_rejected_with_a_clear_error():
     with pytest.raises(ValueError, match="isotropic"):
         lamina.materials.suite("anisotropic-coat-metal").eval([0, 0, 1.0], [0, 0, 1.0], "belcour")

@@ -37,6 +37,18 @@ pub fn hg_variance(g: f64) -> f64 {
     ((1.0 - g) / g).powf(0.8) / (1.0 + g)
 }
 
+/// Where Belcour's paper and reference code disagree, each choice is an option, measured against the reference
+/// evaluator in docs/validation.md. Defaults: the reference code.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Variant {
+    /// Transmission roughness scale s with the real cosines (paper) instead of cosines frozen to 1 (code).
+    pub real_cosines: bool,
+    /// J21 (paper) instead of j12 (code) in the transmitted and back-reflected variance terms.
+    pub jacobian_j21: bool,
+    /// Energies from the exact Fresnel at the mean cosine instead of the FGD table.
+    pub fresnel_energy: bool,
+}
+
 enum Step {
     /// A rough interface: relative IOR per channel (below / above), κ per channel (conductors), roughness.
     Interface { eta: Vec<f64>, kappa: Vec<f64>, alpha: f64, conductor: bool },
@@ -56,6 +68,7 @@ pub struct Prepared {
     diffuse: Option<DiffuseBase>,
     g2: G2Form,
     symmetric: bool,
+    variant: Variant,
     channels: usize,
 }
 
@@ -104,7 +117,14 @@ pub fn prepare(stack: &Stack, opts: &Options) -> Result<Prepared> {
             }
         }
     }
-    let mut p = Prepared { steps, diffuse: None, g2: opts.g2, symmetric: opts.symmetric, channels: stack.channels };
+    let mut p = Prepared {
+        steps,
+        diffuse: None,
+        g2: opts.g2,
+        symmetric: opts.symmetric,
+        variant: opts.belcour,
+        channels: stack.channels,
+    };
     if let Some(mut d) = diffuse {
         d.r_up = p.hemispherical_reflectance_from_below(d.eta);
         p.diffuse = Some(d);
@@ -147,7 +167,7 @@ struct StepStats {
 impl State {
     /// Adds one step below the stack (adding-doubling on energies and variances); returns the energy and
     /// roughness of the lobe reflected by this step.
-    fn add(&mut self, st: &StepStats) -> (Vec<f64>, f64) {
+    fn add(&mut self, st: &StepStats, j21_in_variance: bool) -> (Vec<f64>, f64) {
         let c = self.r0i.len();
         let denom: Vec<f64> = (0..c).map(|k| 1.0 - self.ri0[k] * st.r12[k]).collect();
         let ok = mean(&denom) > 0.0;
@@ -164,10 +184,10 @@ impl State {
         let below = self.s_t0i + st.s_r12 + mrr * (st.s_r12 + self.s_ri0);
         let lobe_variance = self.s_ti0 + self.j0i * below;
         let s_r0i = if er0i > 0.0 { (r0i * self.s_r0i + mr0i * lobe_variance) / er0i } else { 0.0 };
-        let s_t0i = st.j12 * self.s_t0i + st.s_t12 + st.j12 * (st.s_r12 + self.s_ri0) * mrr;
+        let j = if j21_in_variance { st.j21 } else { st.j12 };
+        let s_t0i = j * self.s_t0i + st.s_t12 + j * (st.s_r12 + self.s_ri0) * mrr;
         let s_ri0 = if eri0 > 0.0 {
-            (r21 * st.s_r21 + mri0 * (st.s_t12 + st.j12 * (st.s_t21 + self.s_ri0 + mrr * (st.s_r12 + self.s_ri0))))
-                / eri0
+            (r21 * st.s_r21 + mri0 * (st.s_t12 + j * (st.s_t21 + self.s_ri0 + mrr * (st.s_r12 + self.s_ri0)))) / eri0
         } else {
             0.0
         };
@@ -243,11 +263,13 @@ impl Prepared {
                     let ctt = if stt <= 1.0 { (1.0 - stt * stt).sqrt() } else { -1.0 };
                     let transmissive = ctt > 0.0 && !conductor;
                     let s_r12 = variance_from_alpha(*alpha);
-                    // Transmission roughness scale with frozen cosines, as in the reference code.
+                    // Transmission roughness scale s = |η cos θt − cos θi| / (2η cos θt) (and its reverse), with the
+                    // cosines frozen to 1 as in the reference code, or real as in the paper.
+                    let (ci, ct) = if self.variant.real_cosines { (cti, ctt) } else { (1.0, 1.0) };
                     let (s_t12, s_t21, j12, j21) = if transmissive {
                         (
-                            variance_from_alpha(alpha * (n12 - 1.0).abs() / (2.0 * n12)),
-                            variance_from_alpha(alpha * (n12 - 1.0).abs() / 2.0),
+                            variance_from_alpha(alpha * 0.5 * (ct * n12 - ci).abs() / (ct * n12)),
+                            variance_from_alpha(alpha * 0.5 * (ci / n12 - ct).abs() / (ci / n12)),
                             ctt / cti * n12,
                             cti / ctt / n12,
                         )
@@ -258,7 +280,7 @@ impl Prepared {
                     let temp_alpha = alpha_from_variance(s.s_t0i + s_r12);
                     let r12: Vec<f64> = (0..c)
                         .map(|k| {
-                            if temp_alpha == 0.0 {
+                            if temp_alpha == 0.0 || self.variant.fresnel_energy {
                                 fresnel::conductor(cti, eta[k], kappa[k]) // FGD at α = 0 is the Fresnel term itself
                             } else {
                                 fgd.lookup(cti, temp_alpha, eta[k], kappa[k])
@@ -269,7 +291,7 @@ impl Prepared {
                     let (r21, t21) =
                         if transmissive { (r12.clone(), t12.clone()) } else { (vec![0.0; c], vec![0.0; c]) };
                     let st = StepStats { r12, t12, r21, t21, s_r12, s_t12, s_r21: s_r12, s_t21, j12, j21 };
-                    lobes.push(s.add(&st));
+                    lobes.push(s.add(&st, self.variant.jacobian_j21));
                     if !transmissive {
                         s.t0i.fill(0.0);
                         s.ti0.fill(0.0);
@@ -298,7 +320,7 @@ impl Prepared {
                         j12: 1.0,
                         j21: 1.0,
                     };
-                    s.add(&st);
+                    s.add(&st, self.variant.jacobian_j21);
                 }
             }
         }

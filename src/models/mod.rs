@@ -20,6 +20,8 @@ pub struct Options {
     pub fresnel: FresnelForm,
     /// Belcour's symmetric (reciprocal) variant: statistics at |wo·h| instead of cos θo.
     pub symmetric: bool,
+    /// Belcour 2018 choices where the paper and the reference code differ (see models/belcour.rs).
+    pub belcour: belcour::Variant,
 }
 
 impl Default for Options {
@@ -29,6 +31,7 @@ impl Default for Options {
             g2: G2Form::HeightCorrelated,
             fresnel: FresnelForm::Exact,
             symmetric: false,
+            belcour: belcour::Variant::default(),
         }
     }
 }
