@@ -490,6 +490,40 @@ fn interface_bsdf<'py>(
     })
 }
 
+/// Jacobians of the projected reflection (eta = None) or refraction map, (..., 4) row-major 2x2; NaN marks total
+/// internal reflection (the Python layer turns it into a ValueError).
+#[pyfunction]
+#[pyo3(signature = (theta_i, xh, yh, eta=None, exact=true))]
+fn jacobian<'py>(
+    py: Python<'py>,
+    theta_i: &Bound<'py, PyAny>,
+    xh: &Bound<'py, PyAny>,
+    yh: &Bound<'py, PyAny>,
+    eta: Option<&Bound<'py, PyAny>>,
+    exact: bool,
+) -> PyResult<Bound<'py, PyAny>> {
+    use crate::optics::jacobian as jac;
+    let flat = |m: Option<[[f64; 2]; 2]>, o: &mut [f64]| match m {
+        Some(m) => o.copy_from_slice(&[m[0][0], m[0][1], m[1][0], m[1][1]]),
+        None => o.fill(f64::NAN),
+    };
+    let mut inputs =
+        vec![("theta_i", theta_i, Kind::Values(1)), ("xh", xh, Kind::Values(1)), ("yh", yh, Kind::Values(1))];
+    if let Some(e) = eta {
+        inputs.push(("eta", e, Kind::Values(1)));
+    }
+    batch(py, &inputs, 4, |r, o| {
+        let (t, x, y) = (r[0][0], r[1][0], r[2][0]);
+        let m = match (r.get(3).map(|e| e[0]), exact) {
+            (None, true) => Some(jac::reflect(t, x, y)),
+            (None, false) => Some(jac::reflect_first_order(t)),
+            (Some(e), true) => jac::refract(t, e, x, y),
+            (Some(e), false) => jac::refract_first_order(t, e),
+        };
+        flat(m, o)
+    })
+}
+
 /// Lobe energies (n, lobes, channels) and roughnesses (n, lobes).
 type Lobes = (Vec<Vec<Vec<f64>>>, Vec<Vec<f64>>);
 
@@ -627,6 +661,7 @@ fn _lamina(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(reference_tally, m)?)?;
     m.add_function(wrap_pyfunction!(reference_f, m)?)?;
     m.add_function(wrap_pyfunction!(belcour_lobes, m)?)?;
+    m.add_function(wrap_pyfunction!(jacobian, m)?)?;
     m.add("REFERENCE_MAX_DEPTH", crate::reference::MAX_DEPTH)?;
     Ok(())
 }

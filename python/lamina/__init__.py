@@ -12,9 +12,10 @@ Conventions (local frame, z = normal, directions pointing away, f without the co
 from . import materials, optics
 from ._lamina import __version__
 from .layers import MODELS, Conductor, Dielectric, Diffuse, Stack
+from .optics import jacobian_reflect, jacobian_refract
 from .spectrum import RGB_WAVELENGTHS, Spectrum, to_srgb, to_xyz, xyz_weights
 
 __all__ = [
     "MODELS", "Conductor", "Dielectric", "Diffuse", "Stack", "Spectrum", "RGB_WAVELENGTHS",
-    "to_xyz", "to_srgb", "xyz_weights", "materials", "optics", "__version__",
+    "to_xyz", "to_srgb", "xyz_weights", "materials", "optics", "jacobian_reflect", "jacobian_refract", "__version__",
 ]

@@ -96,3 +96,31 @@ def rough_dielectric(wi, wo, eta, roughness, angle=0.0, distribution="ggx", g2="
     eta = _channel_list("eta", eta)
     wi, wo = broadcast(wi=(wi, 3), wo=(wo, 3))
     return _lamina.interface_bsdf("dielectric", wi, wo, eta, [0.0] * len(eta), _mf(roughness, angle, distribution), g2)
+
+
+def _jacobian(theta_i, xh, yh, eta, exact: bool) -> np.ndarray:
+    inputs = dict(theta_i=theta_i, xh=xh, yh=yh) if eta is None else dict(theta_i=theta_i, xh=xh, yh=yh, eta=eta)
+    arrays = broadcast(**{k: (v, 0) for k, v in inputs.items()})
+    t, x, y = (a[..., 0] for a in arrays[:3])
+    if np.any((t < 0) | (t >= np.pi / 2)):
+        raise ValueError("theta_i must be in [0, pi/2) radians")
+    if np.any(x * x + y * y >= 1):
+        raise ValueError("(xh, yh) must lie inside the unit disc (a projected normal above the surface)")
+    if eta is not None and np.any(arrays[3] <= 0):
+        raise ValueError("eta must be in (0, inf)")
+    out = _lamina.jacobian(*arrays[:3], eta=arrays[3] if eta is not None else None, exact=exact)
+    if np.isnan(out).any():
+        raise ValueError("eta: total internal reflection (sin θ at the microfacet exceeds eta) for some elements")
+    return out.reshape(out.shape[:-1] + (2, 2))
+
+
+def jacobian_reflect(theta_i, xh=0.0, yh=0.0, exact: bool = True) -> np.ndarray:
+    """J_r = ∂(xo, yo)/∂(xh, yh), (..., 2, 2): how the projected reflected direction moves with the projected
+    microfacet normal, light from wi = (sin θi, 0, cos θi). exact=False: Belcour's first order 2 cos θi I."""
+    return _jacobian(theta_i, xh, yh, None, exact)
+
+
+def jacobian_refract(theta_i, eta, xh=0.0, yh=0.0, exact: bool = True) -> np.ndarray:
+    """J_t = ∂(xt, yt)/∂(xh, yh), (..., 2, 2), for refraction with relative IOR eta. exact=False: Belcour's first
+    order ((cos θi − η cos θt)/η) I. ValueError under total internal reflection."""
+    return _jacobian(theta_i, xh, yh, eta, exact)

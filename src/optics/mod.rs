@@ -3,6 +3,7 @@
 
 pub mod diffuse;
 pub mod fresnel;
+pub mod jacobian;
 pub mod microfacet;
 
 use glam::DVec3;
