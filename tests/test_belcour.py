@@ -60,11 +60,23 @@ def test_total_internal_reflection_layers_stay_finite():
 
 
 @settings(max_examples=15, deadline=None)
-@given(isotropic_stacks, st.floats(0.0, 85.0))
-def test_albedo_at_most_one(stack, theta):
+@given(isotropic_stacks, st.floats(0.0, 89.0))
+def test_view_albedo_at_most_one(stack, theta):
+    """The statistics follow the viewing direction wo (Belcour's reference code), so the model conserves energy for
+    a fixed view: ∫ f(wi, wo) cos θi dωi plus the delta reflection of a smooth top (its lobe-0 energy) <= 1.
+    (The light albedo ∫ f cos θo dωo can exceed 1 at grazing incidence: docs/validation.md.) 1e-3: quadrature."""
     t = np.radians(theta)
-    a = stack.albedo(np.array([np.sin(t), 0.0, np.cos(t)]), "belcour")
-    assert np.all(a <= 1 + 1e-3), a  # 1e-3: the midpoint quadrature of Stack.albedo
+    wo = np.array([np.sin(t), 0.0, np.cos(t)])
+    nt, npp = 256, 512
+    ti = (np.arange(nt) + 0.5) * (np.pi / 2 / nt)
+    p = (np.arange(npp) + 0.5) * (2 * np.pi / npp)
+    T, P = np.meshgrid(ti, p, indexing="ij")
+    wi = np.stack([np.sin(T) * np.cos(P), np.sin(T) * np.sin(P), np.cos(T)], -1)
+    w = (np.cos(T) * np.sin(T))[..., None] * (np.pi / 2 / nt) * (2 * np.pi / npp)
+    view_albedo = np.sum(stack.eval(wi, wo, "belcour") * w, axis=(0, 1))
+    lobes = stack.lobes(wo)
+    delta = lobes["energy"][0] if lobes["roughness"][0] == 0 else 0.0
+    assert np.all(view_albedo + delta <= 1 + 1e-3), (view_albedo, delta)
 
 
 def test_variant_options():

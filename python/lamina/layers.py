@@ -179,11 +179,12 @@ class Stack:
                 "roughness": roughness.reshape(wi.shape[:-1] + roughness.shape[1:])}
 
     def albedo(self, wi, model: str = "microfacet", *, wavelengths=None, samples: int = 100_000, seed: int = 0,
-               progress=None, distribution: str = "ggx", g2: str = "height_correlated", fresnel: str = "exact"):
+               progress=None, distribution: str = "ggx", g2: str = "height_correlated", **model_options):
         """Directional albedo ∫ f(wi, wo) cos θo dωo: the fraction of light from wi that the stack reflects.
 
         wi: (..., 3). Returns (..., channels). For an analytic model the integral is a midpoint quadrature
-        (512 x 1024 in θo, φo) of `eval` (its smooth, Dirac parts are not included). With model="reference" it is
+        (512 x 1024 in θo, φo) of `eval` with `model_options` (its smooth, Dirac parts are not included). With
+        model="reference" it is
         the brute-force Monte Carlo walk with `samples` paths per direction (delta reflections included), and the
         result is a pair (albedo, standard error)."""
         wl = _wavelengths(wavelengths)
@@ -202,7 +203,7 @@ class Stack:
         wo = np.stack([np.outer(np.sin(t), np.cos(p)), np.outer(np.sin(t), np.sin(p)),
                        np.repeat(np.cos(t)[:, None], npp, axis=1)], axis=-1)
         weight = (np.cos(t) * np.sin(t))[:, None, None] * (np.pi / 2 / nt) * (2 * np.pi / npp)
-        out = [np.sum(self.eval(w, wo, model, wavelengths=wl, distribution=distribution, g2=g2, fresnel=fresnel)
+        out = [np.sum(self.eval(w, wo, model, wavelengths=wl, distribution=distribution, g2=g2, **model_options)
                       * weight, axis=(0, 1)) for w in rows]
         return np.array(out).reshape(wi.shape[:-1] + (len(out[0]),))
 
