@@ -285,7 +285,7 @@ fn check_stack(layers: &Bound<'_, PyList>, ext_ior: f64, model: Option<&str>) ->
 
 /// f(wi, wo) of a stack under a model: (..., channels).
 #[pyfunction]
-#[pyo3(signature = (layers, ext_ior, model, wi, wo, distribution="ggx", g2="height_correlated", fresnel="exact", symmetric=false, cosines="frozen", jacobian="j12", energy="fgd"))]
+#[pyo3(signature = (layers, ext_ior, model, wi, wo, distribution="ggx", g2="height_correlated", fresnel="exact", symmetric=false, cosines="frozen", jacobian="j12", energy="fgd", tabulated=true))]
 #[allow(clippy::too_many_arguments)]
 fn eval_stack<'py>(
     py: Python<'py>,
@@ -301,6 +301,7 @@ fn eval_stack<'py>(
     cosines: &str,
     jacobian: &str,
     energy: &str,
+    tabulated: bool,
 ) -> PyResult<Bound<'py, PyAny>> {
     let stack = parse_stack(layers, ext_ior)?;
     let choice = |name: &str, value: &str, a: &str, b: &str| match value {
@@ -318,6 +319,7 @@ fn eval_stack<'py>(
             jacobian_j21: choice("jacobian", jacobian, "j12", "j21")?,
             fresnel_energy: choice("energy", energy, "fgd", "fresnel")?,
         },
+        belcour_table: tabulated,
     };
     let model = models::prepare(model, &stack, &opts)?;
     batch(py, &[("wi", wi, Kind::Direction), ("wo", wo, Kind::Direction)], stack.channels, |r, o| {

@@ -16,7 +16,22 @@ from conftest import random_hemisphere
 def test_smooth_coat_over_lambert_reduces_to_the_closed_form(rng):
     stack = lamina.materials.plastic((0.9, 0.5, 0.1), ior=1.5)
     wi, wo = random_hemisphere(rng, 200), random_hemisphere(rng, 200)
-    np.testing.assert_allclose(stack.eval(wi, wo, "belcour"), stack.eval(wi, wo), rtol=1e-8)
+    np.testing.assert_allclose(stack.eval(wi, wo, "belcour", tabulated=False), stack.eval(wi, wo), rtol=1e-8)
+
+
+@pytest.mark.parametrize("name", ["gold-clearcoat", "rough-coat-rough-copper", "varnished-diffuse", "three-layer"])
+def test_tabulated_evaluation_matches_the_direct_loop(name, rng):
+    """The default evaluation interpolates the adding-doubling from 512 nodes uniform in √cos θ. Measured over 200k
+    random pairs per isotropic suite material, both variants, two seeds: max relative difference 0.048%, 99.9th
+    percentile 0.027% (with nodes uniform in cos θ it was 0.67% at grazing angles). Asserted: max 0.1%, p99.9 0.05%."""
+    stack = lamina.materials.suite(name)
+    wi, wo = random_hemisphere(rng, 50_000, 0.01), random_hemisphere(rng, 50_000, 0.01)
+    for sym in (False, True):
+        a = stack.eval(wi, wo, "belcour", symmetric=sym)
+        b = stack.eval(wi, wo, "belcour", symmetric=sym, tabulated=False)
+        big = b > 1e-3 * b.max()
+        rel = np.abs(a - b)[big] / b[big]
+        assert rel.max() <= 1e-3 and np.percentile(rel, 99.9) <= 5e-4, (sym, rel.max(), np.percentile(rel, 99.9))
 
 
 def test_single_interface_is_one_lobe_of_its_roughness():

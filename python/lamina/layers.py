@@ -127,7 +127,8 @@ class Stack:
 
     def eval(self, wi, wo, model: str = "microfacet", *, wavelengths=None, distribution: str = "ggx",
              g2: str = "height_correlated", fresnel: str = "exact", symmetric: bool = False, cosines: str = "frozen",
-             jacobian: str = "j12", energy: str = "fgd", samples: int = 10_000, seed: int = 0) -> np.ndarray:
+             jacobian: str = "j12", energy: str = "fgd", tabulated: bool = True, samples: int = 10_000,
+             seed: int = 0) -> np.ndarray:
         """The BRDF f(wi, wo), not multiplied by cos θo.
 
         wi, wo: directions (..., 3) in the local frame (z = normal), both pointing away from the surface; they need
@@ -138,7 +139,9 @@ class Stack:
         'v_cavity'; `fresnel` 'exact' | 'schlick' | 'lazanyi' (conductors). model="belcour": `symmetric` (the
         reciprocal variant), and where paper and reference code differ, `cosines` 'frozen' (code) | 'real' (paper)
         in the transmission roughness scale, `jacobian` 'j12' (code) | 'j21' (paper) in the variance terms,
-        `energy` 'fgd' (table) | 'fresnel' (exact Fresnel at the mean cosine); measured in docs/validation.md. model="reference" returns the mean of `Stack.reference` with `samples` paths
+        `energy` 'fgd' (table) | 'fresnel' (exact Fresnel at the mean cosine); measured in docs/validation.md;
+        `tabulated` interpolates the adding-doubling from a per-call table over cos θ (512 nodes; False runs it for
+        every evaluation). model="reference" returns the mean of `Stack.reference` with `samples` paths
         per pair (exact Fresnel)."""
         if model == "reference":
             return self.reference(wi, wo, wavelengths=wavelengths, samples=samples, seed=seed,
@@ -147,7 +150,7 @@ class Stack:
         wi, wo = broadcast(wi=(wi, 3), wo=(wo, 3))
         return _lamina.eval_stack(self._resolve(wl), self.ext_ior, model, wi, wo,
                                   distribution=distribution, g2=g2, fresnel=fresnel, symmetric=bool(symmetric),
-                                  cosines=cosines, jacobian=jacobian, energy=energy)
+                                  cosines=cosines, jacobian=jacobian, energy=energy, tabulated=bool(tabulated))
 
 
     def reference(self, wi, wo, *, wavelengths=None, samples: int = 100_000, seed: int = 0, progress=None,

@@ -63,9 +63,26 @@ struct DiffuseBase {
     r_up: Vec<f64>,
 }
 
+/// Everything the adding-doubling produces, tabulated over the cosine it is run for, at nodes uniform in √cos θ
+/// (denser at grazing angles, where a smooth top's Fresnel term rises steeply): evaluation interpolates linearly
+/// instead of re-running the loop. The interpolation error is measured and asserted in tests/test_belcour.py.
+const TABLE_NODES: usize = 512;
+
+struct LobeTable {
+    lobes: usize,
+    /// [node][lobe][channel]
+    energy: Vec<f64>,
+    /// [node][lobe]
+    alpha: Vec<f64>,
+    /// [node][channel]: energy transmitted down to the base (T0i) and up from it (Ti0).
+    t_down: Vec<f64>,
+    t_up: Vec<f64>,
+}
+
 pub struct Prepared {
     steps: Vec<Step>,
     diffuse: Option<DiffuseBase>,
+    table: Option<LobeTable>,
     g2: G2Form,
     symmetric: bool,
     variant: Variant,
@@ -120,6 +137,7 @@ pub fn prepare(stack: &Stack, opts: &Options) -> Result<Prepared> {
     let mut p = Prepared {
         steps,
         diffuse: None,
+        table: None,
         g2: opts.g2,
         symmetric: opts.symmetric,
         variant: opts.belcour,
@@ -128,6 +146,9 @@ pub fn prepare(stack: &Stack, opts: &Options) -> Result<Prepared> {
     if let Some(mut d) = diffuse {
         d.r_up = p.hemispherical_reflectance_from_below(d.eta);
         p.diffuse = Some(d);
+    }
+    if opts.belcour_table {
+        p.table = Some(p.tabulate());
     }
     Ok(p)
 }
@@ -232,6 +253,29 @@ impl Prepared {
         r
     }
 
+    fn tabulate(&self) -> LobeTable {
+        let c = self.channels;
+        let runs: Vec<_> =
+            (0..TABLE_NODES).map(|k| self.adding((k as f64 / (TABLE_NODES - 1) as f64).powi(2))).collect();
+        let lobes = runs.iter().map(|(l, _)| l.len()).max().unwrap_or(0);
+        let mut t = LobeTable {
+            lobes,
+            energy: vec![0.0; TABLE_NODES * lobes * c],
+            alpha: vec![0.0; TABLE_NODES * lobes],
+            t_down: Vec::with_capacity(TABLE_NODES * c),
+            t_up: Vec::with_capacity(TABLE_NODES * c),
+        };
+        for (k, (l, state)) in runs.iter().enumerate() {
+            for (j, (e, a)) in l.iter().enumerate() {
+                t.energy[(k * lobes + j) * c..(k * lobes + j + 1) * c].copy_from_slice(e);
+                t.alpha[k * lobes + j] = *a;
+            }
+            t.t_down.extend_from_slice(&state.t0i);
+            t.t_up.extend_from_slice(&state.ti0);
+        }
+        t
+    }
+
     /// The lobes (energy per channel, GGX roughness) for a viewing cosine `cos_theta`.
     pub fn lobes(&self, cos_theta: f64) -> Vec<(Vec<f64>, f64)> {
         self.adding(cos_theta).0
@@ -334,6 +378,9 @@ impl Prepared {
         }
         let h = (wi + wo).normalize();
         let cos_theta = if self.symmetric { wo.dot(h).abs() } else { wo.z };
+        if let Some(t) = &self.table {
+            return self.eval_tabulated(t, wi, wo, h, cos_theta, out);
+        }
         let (lobes, view) = self.adding(cos_theta);
         for (coeff, alpha) in &lobes {
             if *alpha <= 0.0 {
@@ -352,6 +399,42 @@ impl Prepared {
             for (k, o) in out.iter_mut().enumerate() {
                 let rho = d.albedo[k];
                 *o += rho * FRAC_1_PI * light.t0i[k] * view.ti0[k] / ((1.0 - rho * d.r_up[k]) * d.eta * d.eta);
+            }
+        }
+    }
+}
+
+impl Prepared {
+    /// Linear interpolation (in √cos θ) of a cosine in the table: (node, weight of the next node).
+    fn node(cos_theta: f64) -> (usize, f64) {
+        let x = cos_theta.clamp(0.0, 1.0).sqrt() * (TABLE_NODES - 1) as f64;
+        let k = (x as usize).min(TABLE_NODES - 2);
+        (k, x - k as f64)
+    }
+
+    fn eval_tabulated(&self, t: &LobeTable, wi: DVec3, wo: DVec3, h: DVec3, cos_theta: f64, out: &mut [f64]) {
+        let c = self.channels;
+        let (k, w) = Self::node(cos_theta);
+        let lerp = |v: &[f64], stride: usize, j: usize| v[k * stride + j] * (1.0 - w) + v[(k + 1) * stride + j] * w;
+        for j in 0..t.lobes {
+            let alpha = lerp(&t.alpha, t.lobes, j);
+            if alpha <= 0.0 {
+                continue;
+            }
+            let mf = Microfacet::new(crate::optics::microfacet::Distribution::Ggx, alpha, alpha, 0.0);
+            let shape = mf.d(h) * mf.g2(self.g2, wi, wo, h) / (4.0 * wi.z * wo.z);
+            for (ch, o) in out.iter_mut().enumerate() {
+                *o += lerp(&t.energy, t.lobes * c, j * c + ch) * shape;
+            }
+        }
+        if let Some(d) = &self.diffuse {
+            let (ki, wi_w) = Self::node(wi.z);
+            let (ko, wo_w) = Self::node(wo.z);
+            for (ch, o) in out.iter_mut().enumerate() {
+                let down = t.t_down[ki * c + ch] * (1.0 - wi_w) + t.t_down[(ki + 1) * c + ch] * wi_w;
+                let up = t.t_up[ko * c + ch] * (1.0 - wo_w) + t.t_up[(ko + 1) * c + ch] * wo_w;
+                let rho = d.albedo[ch];
+                *o += rho * FRAC_1_PI * down * up / ((1.0 - rho * d.r_up[ch]) * d.eta * d.eta);
             }
         }
     }
@@ -379,7 +462,7 @@ mod tests {
             1.0,
         )
         .unwrap();
-        let p = prepare(&stack, &Options::default()).unwrap();
+        let p = prepare(&stack, &Options { belcour_table: false, ..Options::default() }).unwrap();
         let f_int = crate::optics::fresnel::diffuse_reflectance(1.0 / 1.5);
         for (wi, wo) in [(DVec3::new(0.3, 0.1, 0.9), DVec3::new(-0.6, 0.2, 0.5)), (DVec3::new(0.9, 0.0, 0.2), DVec3::Z)]
         {

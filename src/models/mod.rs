@@ -22,6 +22,9 @@ pub struct Options {
     pub symmetric: bool,
     /// Belcour 2018 choices where the paper and the reference code differ (see models/belcour.rs).
     pub belcour: belcour::Variant,
+    /// Belcour 2018: interpolate the adding-doubling results from a per-call table over cos θ (fast) instead of
+    /// running it for every evaluation.
+    pub belcour_table: bool,
 }
 
 impl Default for Options {
@@ -32,6 +35,7 @@ impl Default for Options {
             fresnel: FresnelForm::Exact,
             symmetric: false,
             belcour: belcour::Variant::default(),
+            belcour_table: true,
         }
     }
 }
