@@ -533,7 +533,8 @@ type Lobes = (Vec<Vec<Vec<f64>>>, Vec<Vec<f64>>);
 #[pyfunction]
 fn belcour_lobes(layers: &Bound<'_, PyList>, ext_ior: f64, cos_theta: Vec<f64>) -> PyResult<Lobes> {
     let stack = parse_stack(layers, ext_ior)?;
-    let p = models::belcour::prepare(&stack, &Options::default())?;
+    // Lobes come straight from the adding-doubling: no evaluation table is needed.
+    let p = models::belcour::prepare(&stack, &Options { belcour_table: false, ..Options::default() })?;
     if let Some(c) = cos_theta.iter().find(|c| !(c.is_finite() && **c > 0.0 && **c <= 1.0)) {
         return Err(PyValueError::new_err(format!(
             "wi must point above the surface (cos θ in (0, 1]), got cos θ = {c}"

@@ -144,6 +144,27 @@ fn scatter_base(base: &Base, g2: G2Form, d: DVec3, rng: &mut Rng) -> Option<(DVe
     }
 }
 
+/// Scatters a path travelling along `d` at boundary `b` (interface b, or the base when b = number of interfaces).
+fn scatter_boundary(s: &ChannelStack, b: usize, d: DVec3, rng: &mut Rng) -> Option<(DVec3, f64)> {
+    match s.interfaces.get(b) {
+        Some(it) => scatter_interface(&it.mf, s.g2, it.eta, d, rng),
+        None => scatter_base(&s.base, s.g2, d, rng),
+    }
+}
+
+/// Russian roulette once a path has had a few events and lost half its weight: survives with probability
+/// max(weight, 0.05) and is reweighted (unbiased). Returns false when the path is terminated.
+fn russian_roulette(weight: &mut f64, events: usize, rng: &mut Rng) -> bool {
+    if events > 4 && *weight < 0.5 {
+        let q = weight.max(0.05);
+        if rng.uniform() >= q {
+            return false;
+        }
+        *weight /= q;
+    }
+    true
+}
+
 /// BSDF value f(w_light, w_view) of boundary `b` (interface b, or the base when b = number of interfaces): light
 /// arrives along w_light and leaves along w_view, both pointing away from the boundary.
 fn boundary_f(s: &ChannelStack, b: usize, w_light: DVec3, w_view: DVec3) -> f64 {
@@ -249,19 +270,13 @@ pub enum Target {
 /// the scattering slabs it crosses and ending at its first non-delta boundary (or when it leaves the stack).
 fn light_targets(s: &ChannelStack, wi: DVec3, rng: &mut Rng, out: &mut Vec<Target>) {
     out.clear();
-    let n = s.interfaces.len();
     if !is_delta(s, 0) {
         out.push(Target::Surface { b: 0, w_light: wi, weight: 1.0 });
         return;
     }
     let (mut d, mut b, mut weight) = (-wi, 0, 1.0);
     for _ in 0..MAX_DEPTH {
-        let scattered = if b == n {
-            scatter_base(&s.base, s.g2, d, rng)
-        } else {
-            scatter_interface(&s.interfaces[b].mf, s.g2, s.interfaces[b].eta, d, rng)
-        };
-        let Some((dir, w)) = scattered else { return };
+        let Some((dir, w)) = scatter_boundary(s, b, d, rng) else { return };
         d = dir;
         weight *= w;
         if d.z > 0.0 && b == 0 {
@@ -337,12 +352,7 @@ pub fn estimate_f(s: &ChannelStack, wi: DVec3, wo: DVec3, rng: &mut Rng, targets
                 f += beta * fv * l.weight * slab0_tr(s.slabs[0].thickness, l.d) * power_heuristic(l.pdf, pb);
             }
         }
-        let scattered = if b == n {
-            scatter_base(&s.base, s.g2, d, rng)
-        } else {
-            scatter_interface(&s.interfaces[b].mf, s.g2, s.interfaces[b].eta, d, rng)
-        };
-        let Some((dir, w)) = scattered else { return Some(f) };
+        let Some((dir, w)) = scatter_boundary(s, b, d, rng) else { return Some(f) };
         last_pdf = if is_delta(s, b) { None } else { Some(boundary_pdf(s, b, -d, dir)) };
         if b < n && dir.z * d.z > 0.0 {
             // Radiance crossing into the other medium: L_here = (η_here / η_there)² L_there.
@@ -357,54 +367,32 @@ pub fn estimate_f(s: &ChannelStack, wi: DVec3, wo: DVec3, rng: &mut Rng, targets
         let slab = if d.z > 0.0 { b - 1 } else { b };
         let sl = &s.slabs[slab];
         let sigma_t = sl.sigma_a + sl.sigma_s;
-        let mut z = if d.z > 0.0 { sl.thickness } else { 0.0 };
-        if sl.thickness > 0.0 && sigma_t > 0.0 {
-            loop {
-                if d.z.abs() < 1e-12 {
-                    return Some(f);
-                }
-                let to_boundary = if d.z < 0.0 { sl.thickness - z } else { z } / d.z.abs();
-                if sl.sigma_s == 0.0 {
-                    beta *= (-sl.sigma_a * to_boundary).exp();
-                    break;
-                }
-                let dist = -(1.0 - rng.uniform()).ln() / sigma_t;
-                if dist >= to_boundary {
-                    break;
-                }
-                z -= dist * d.z;
-                let albedo = sl.sigma_s / sigma_t;
-                for t in targets.iter() {
-                    if let Target::Volume { slab: ts, d: dl, z0, weight } = *t {
-                        if ts == slab {
-                            let tr = (-sigma_t * (z - z0).abs() / dl.z.abs()).exp();
-                            f += beta * albedo * henyey_greenstein(dl.dot(-d), sl.g) * weight * tr / dl.z.abs();
-                        }
+        let z = if d.z > 0.0 { sl.thickness } else { 0.0 };
+        let at_collision = |z: f64, d: DVec3, new_d: DVec3, beta: f64| {
+            let albedo = sl.sigma_s / sigma_t;
+            for t in targets.iter() {
+                if let Target::Volume { slab: ts, d: dl, z0, weight } = *t {
+                    if ts == slab {
+                        let tr = (-sigma_t * (z - z0).abs() / dl.z.abs()).exp();
+                        f += beta * albedo * henyey_greenstein(dl.dot(-d), sl.g) * weight * tr / dl.z.abs();
                     }
                 }
-                if let (Some(l), 0) = (light, slab) {
-                    // Strategy A at a collision in slab 0.
-                    let p = henyey_greenstein(l.d.dot(-d), sl.g);
-                    let pb = henyey_greenstein(d.dot(-l.d), sl.g);
-                    f += beta * albedo * p * l.weight * slab0_tr(z, l.d) / l.d.z.abs() * power_heuristic(l.pdf, pb);
-                }
-                beta *= albedo;
-                let new_d = sample_henyey_greenstein(d, sl.g, rng.uniform(), rng.uniform());
-                last_pdf = Some(henyey_greenstein(d.dot(new_d), sl.g));
-                d = new_d;
-                events += 1;
-                if events >= MAX_DEPTH {
-                    return None;
-                }
             }
-        }
+            if let (Some(l), 0) = (light, slab) {
+                // Strategy A at a collision in slab 0.
+                let p = henyey_greenstein(l.d.dot(-d), sl.g);
+                let pb = henyey_greenstein(d.dot(-l.d), sl.g);
+                f += beta * albedo * p * l.weight * slab0_tr(z, l.d) / l.d.z.abs() * power_heuristic(l.pdf, pb);
+            }
+            last_pdf = Some(henyey_greenstein(d.dot(new_d), sl.g));
+        };
+        let Some(dir) = traverse(sl, d, z, rng, &mut events, &mut beta, at_collision) else {
+            return if events >= MAX_DEPTH { None } else { Some(f) };
+        };
+        d = dir;
         b = if d.z > 0.0 { slab } else { slab + 1 };
-        if events > 4 && beta < 0.5 {
-            let q = beta.max(0.05);
-            if rng.uniform() >= q {
-                return Some(f);
-            }
-            beta /= q;
+        if !russian_roulette(&mut beta, events, rng) {
+            return Some(f);
         }
     }
     None
@@ -438,29 +426,41 @@ pub fn run_f(s: &ChannelStack, wi: DVec3, wo: DVec3, (first, samples): (u64, u64
     parts.into_iter().fold((0.0, 0.0, 0), |a, b| (a.0 + b.0, a.1 + b.1, a.2 + b.2))
 }
 
-/// Moves a path through a slab from depth `z` (0 = top) along `d` until it reaches a boundary. Returns the weight
-/// factor and the (possibly scattered) direction on arrival, or None if absorbed; counts scattering events.
-fn traverse(slab: &Slab, mut d: DVec3, mut z: f64, rng: &mut Rng, events: &mut usize) -> Option<(DVec3, f64)> {
+/// Moves a path through a slab from depth `z` (0 = top) along `d` until it reaches a boundary, multiplying `weight`
+/// by the slab's attenuation and scattering albedos. At each scattering event `at_collision(z, d_in, d_out, weight)`
+/// is called with the weight before that event's albedo. Returns the direction on arrival, or None when the path is
+/// lost (horizontal) or truncated (told apart by `events` reaching MAX_DEPTH).
+fn traverse(
+    slab: &Slab,
+    mut d: DVec3,
+    mut z: f64,
+    rng: &mut Rng,
+    events: &mut usize,
+    weight: &mut f64,
+    mut at_collision: impl FnMut(f64, DVec3, DVec3, f64),
+) -> Option<DVec3> {
     let sigma_t = slab.sigma_a + slab.sigma_s;
     if slab.thickness == 0.0 || sigma_t == 0.0 {
-        return Some((d, 1.0));
+        return Some(d);
     }
-    let mut weight = 1.0;
     loop {
         if d.z.abs() < 1e-12 {
             return None; // a horizontal path never leaves an infinite slab
         }
         let to_boundary = if d.z < 0.0 { slab.thickness - z } else { z } / d.z.abs();
         if slab.sigma_s == 0.0 {
-            return Some((d, weight * (-slab.sigma_a * to_boundary).exp())); // Beer–Lambert
+            *weight *= (-slab.sigma_a * to_boundary).exp(); // Beer–Lambert
+            return Some(d);
         }
         let t = -(1.0 - rng.uniform()).ln() / sigma_t;
         if t >= to_boundary {
-            return Some((d, weight));
+            return Some(d);
         }
         z -= t * d.z;
-        weight *= slab.sigma_s / sigma_t;
-        d = sample_henyey_greenstein(d, slab.g, rng.uniform(), rng.uniform());
+        let new_d = sample_henyey_greenstein(d, slab.g, rng.uniform(), rng.uniform());
+        at_collision(z, d, new_d, *weight);
+        *weight *= slab.sigma_s / sigma_t;
+        d = new_d;
         *events += 1;
         if *events >= MAX_DEPTH {
             return None;
@@ -470,20 +470,13 @@ fn traverse(slab: &Slab, mut d: DVec3, mut z: f64, rng: &mut Rng, events: &mut u
 
 /// Traces one path of light arriving from `wi` (pointing away from the surface, wi.z > 0).
 pub fn trace(s: &ChannelStack, wi: DVec3, rng: &mut Rng) -> Exit {
-    let n = s.interfaces.len();
     let mut d = -wi;
     let mut weight = 1.0;
     let mut next = 0; // index of the boundary the path reaches next: interface i < n, or the base at n
     let mut events = 0;
     while events < MAX_DEPTH {
         events += 1;
-        let scattered = if next == n {
-            scatter_base(&s.base, s.g2, d, rng)
-        } else {
-            let it = &s.interfaces[next];
-            scatter_interface(&it.mf, s.g2, it.eta, d, rng)
-        };
-        let Some((dir, w)) = scattered else { return Exit::Absorbed };
+        let Some((dir, w)) = scatter_boundary(s, next, d, rng) else { return Exit::Absorbed };
         d = dir;
         weight *= w;
         // Enter the slab above (going up) or below (going down) the boundary just left.
@@ -496,19 +489,13 @@ pub fn trace(s: &ChannelStack, wi: DVec3, rng: &mut Rng) -> Exit {
             next
         };
         let z = if d.z > 0.0 { s.slabs[slab].thickness } else { 0.0 };
-        let Some((dir, w)) = traverse(&s.slabs[slab], d, z, rng, &mut events) else {
+        let Some(dir) = traverse(&s.slabs[slab], d, z, rng, &mut events, &mut weight, |_, _, _, _| {}) else {
             return if events >= MAX_DEPTH { Exit::Truncated } else { Exit::Absorbed };
         };
         d = dir;
-        weight *= w;
         next = if d.z > 0.0 { slab } else { slab + 1 };
-        // Russian roulette once the path has bounced a few times (unbiased: survivors are reweighted).
-        if events > 4 && weight < 0.5 {
-            let q = weight.max(0.05);
-            if rng.uniform() >= q {
-                return Exit::Absorbed;
-            }
-            weight /= q;
+        if !russian_roulette(&mut weight, events, rng) {
+            return Exit::Absorbed;
         }
     }
     Exit::Truncated

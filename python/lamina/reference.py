@@ -38,6 +38,12 @@ def _finish(truncated: int):
                       "and were dropped; the estimate is biased low by at most their share", stacklevel=4)
 
 
+def _mean_stderr(s, s2, samples: int):
+    """Mean of `samples` estimates and its standard error from their sum and sum of squares."""
+    mean = s / samples
+    return mean, np.sqrt(np.maximum(s2 / samples - mean**2, 0.0) / (samples - 1))
+
+
 def _check(samples, seed):
     if not isinstance(samples, (int, np.integer)) or samples < 2:
         raise ValueError(f"samples must be an integer >= 2, got {samples!r}")
@@ -71,8 +77,7 @@ def f_estimate(layers, ext_ior, wi_rows, wo_rows, samples: int, seed: int, progr
             bar.close()
     _finish(truncated)
     s, s2 = np.concatenate([a for a, _ in sums]), np.concatenate([b for _, b in sums])
-    mean = s / samples
-    return mean, np.sqrt(np.maximum(s2 / samples - mean**2, 0.0) / (samples - 1))
+    return _mean_stderr(s, s2, samples)
 
 
 def tally(layers, ext_ior, wi_rows: np.ndarray, samples: int, seed: int, bins=(1, 1), progress=None, **options):
@@ -93,9 +98,9 @@ def tally(layers, ext_ior, wi_rows: np.ndarray, samples: int, seed: int, bins=(1
                 truncated += int(np.sum(t))
                 if bar is not None:
                     bar.update(n)
-            mean = s / samples
+            mean, err = _mean_stderr(s, s2, samples)
             means.append(mean)
-            errors.append(np.sqrt(np.maximum(s2 / samples - mean**2, 0.0) / (samples - 1)))
+            errors.append(err)
     finally:
         if bar is not None:
             bar.close()

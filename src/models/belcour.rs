@@ -383,28 +383,38 @@ impl Prepared {
         }
         let (lobes, view) = self.adding(cos_theta);
         for (coeff, alpha) in &lobes {
-            if *alpha <= 0.0 {
-                continue; // a smooth lobe is a Dirac delta, not part of f
-            }
-            let mf = Microfacet::new(crate::optics::microfacet::Distribution::Ggx, *alpha, *alpha, 0.0);
-            let shape = mf.d(h) * mf.g2(self.g2, wi, wo, h) / (4.0 * wi.z * wo.z);
-            for (o, e) in out.iter_mut().zip(coeff) {
-                *o += e * shape;
-            }
+            self.add_lobe(*alpha, |ch| coeff[ch], wi, wo, h, out);
         }
-        if let Some(d) = &self.diffuse {
+        if self.diffuse.is_some() {
             // T↓ at θi and T↑ at θo (not at |wo·h|): symmetric under exchange, since T0i = Ti0 in this model.
             let light = self.adding(wi.z).1;
             let view = if self.symmetric { self.adding(wo.z).1 } else { view };
-            for (k, o) in out.iter_mut().enumerate() {
-                let rho = d.albedo[k];
-                *o += rho * FRAC_1_PI * light.t0i[k] * view.ti0[k] / ((1.0 - rho * d.r_up[k]) * d.eta * d.eta);
-            }
+            self.add_diffuse(|ch| light.t0i[ch], |ch| view.ti0[ch], out);
         }
     }
-}
 
-impl Prepared {
+    /// Adds one GGX lobe of roughness `alpha` with per-channel `energy`; a lobe of roughness 0 is a Dirac delta,
+    /// not part of f.
+    fn add_lobe(&self, alpha: f64, energy: impl Fn(usize) -> f64, wi: DVec3, wo: DVec3, h: DVec3, out: &mut [f64]) {
+        if alpha <= 0.0 {
+            return;
+        }
+        let mf = Microfacet::new(crate::optics::microfacet::Distribution::Ggx, alpha, alpha, 0.0);
+        let shape = mf.d(h) * mf.g2(self.g2, wi, wo, h) / (4.0 * wi.z * wo.z);
+        for (ch, o) in out.iter_mut().enumerate() {
+            *o += energy(ch) * shape;
+        }
+    }
+
+    /// Adds the diffuse base ρ/π · T↓ T↑ / ((1 − ρ R̄↑) η²) from the energies transmitted down and up per channel.
+    fn add_diffuse(&self, down: impl Fn(usize) -> f64, up: impl Fn(usize) -> f64, out: &mut [f64]) {
+        let Some(d) = &self.diffuse else { return };
+        for (ch, o) in out.iter_mut().enumerate() {
+            let rho = d.albedo[ch];
+            *o += rho * FRAC_1_PI * down(ch) * up(ch) / ((1.0 - rho * d.r_up[ch]) * d.eta * d.eta);
+        }
+    }
+
     /// Linear interpolation (in √cos θ) of a cosine in the table: (node, weight of the next node).
     fn node(cos_theta: f64) -> (usize, f64) {
         let x = cos_theta.clamp(0.0, 1.0).sqrt() * (TABLE_NODES - 1) as f64;
@@ -417,25 +427,13 @@ impl Prepared {
         let (k, w) = Self::node(cos_theta);
         let lerp = |v: &[f64], stride: usize, j: usize| v[k * stride + j] * (1.0 - w) + v[(k + 1) * stride + j] * w;
         for j in 0..t.lobes {
-            let alpha = lerp(&t.alpha, t.lobes, j);
-            if alpha <= 0.0 {
-                continue;
-            }
-            let mf = Microfacet::new(crate::optics::microfacet::Distribution::Ggx, alpha, alpha, 0.0);
-            let shape = mf.d(h) * mf.g2(self.g2, wi, wo, h) / (4.0 * wi.z * wo.z);
-            for (ch, o) in out.iter_mut().enumerate() {
-                *o += lerp(&t.energy, t.lobes * c, j * c + ch) * shape;
-            }
+            self.add_lobe(lerp(&t.alpha, t.lobes, j), |ch| lerp(&t.energy, t.lobes * c, j * c + ch), wi, wo, h, out);
         }
-        if let Some(d) = &self.diffuse {
-            let (ki, wi_w) = Self::node(wi.z);
-            let (ko, wo_w) = Self::node(wo.z);
-            for (ch, o) in out.iter_mut().enumerate() {
-                let down = t.t_down[ki * c + ch] * (1.0 - wi_w) + t.t_down[(ki + 1) * c + ch] * wi_w;
-                let up = t.t_up[ko * c + ch] * (1.0 - wo_w) + t.t_up[(ko + 1) * c + ch] * wo_w;
-                let rho = d.albedo[ch];
-                *o += rho * FRAC_1_PI * down * up / ((1.0 - rho * d.r_up[ch]) * d.eta * d.eta);
-            }
+        if self.diffuse.is_some() {
+            let ((ki, wi_w), (ko, wo_w)) = (Self::node(wi.z), Self::node(wo.z));
+            let down = |ch| t.t_down[ki * c + ch] * (1.0 - wi_w) + t.t_down[(ki + 1) * c + ch] * wi_w;
+            let up = |ch| t.t_up[ko * c + ch] * (1.0 - wo_w) + t.t_up[(ko + 1) * c + ch] * wo_w;
+            self.add_diffuse(down, up, out);
         }
     }
 }
