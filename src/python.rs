@@ -278,14 +278,58 @@ fn parse_stack(layers: &Bound<'_, PyList>, ext_ior: f64) -> PyResult<Stack> {
 fn check_stack(layers: &Bound<'_, PyList>, ext_ior: f64, model: Option<&str>) -> PyResult<usize> {
     let stack = parse_stack(layers, ext_ior)?;
     if let Some(m) = model {
-        models::prepare(m, &stack, &Options::default())?;
+        models::prepare(m, &stack, &Options::for_model(m))?;
     }
     Ok(stack.channels)
 }
 
-/// f(wi, wo) of a stack under a model: (..., channels).
+/// Model options from keyword arguments: the defaults of `model` (Options::for_model), overridden by the known
+/// keys of `options`; an unknown key is a TypeError.
+fn parse_options(model: &str, options: Option<&Bound<'_, PyDict>>) -> PyResult<Options> {
+    let mut o = Options::for_model(model);
+    let Some(d) = options else { return Ok(o) };
+    let choice = |name: &str, value: &str, a: &str, b: &str| match value {
+        v if v == a => Ok(false),
+        v if v == b => Ok(true),
+        v => Err(PyValueError::new_err(format!("{name} must be {a:?} or {b:?}, got {v:?}"))),
+    };
+    for (key, value) in d.iter() {
+        let key: String = key.extract()?;
+        let text = || -> PyResult<String> {
+            value.extract::<String>().map_err(|_| PyTypeError::new_err(format!("{key} must be a string")))
+        };
+        let flag = || -> PyResult<bool> {
+            value.extract::<bool>().map_err(|_| PyTypeError::new_err(format!("{key} must be a bool")))
+        };
+        match key.as_str() {
+            "distribution" => o.distribution = parse_distribution(&text()?)?,
+            "g2" => o.g2 = parse_g2(&text()?)?,
+            "fresnel" => o.fresnel = parse_fresnel(&text()?)?,
+            "symmetric" => o.symmetric = flag()?,
+            "cosines" => o.belcour.real_cosines = choice("cosines", &text()?, "frozen", "real")?,
+            "jacobian" => o.belcour.jacobian_j21 = choice("jacobian", &text()?, "j12", "j21")?,
+            "energy" => o.belcour.fresnel_energy = choice("energy", &text()?, "fgd", "fresnel")?,
+            "tabulated" => o.belcour_table = flag()?,
+            "lut" => o.steinberg_fitted = choice("lut", &text()?, "tabulated", "fitted")?,
+            "precomputed" => o.elek_precomputed = flag()?,
+            "clamp_roughness" => o.clamp_roughness = flag()?,
+            "eta2" => o.eta2 = flag()?,
+            _ => {
+                return Err(PyTypeError::new_err(format!(
+                    "unknown model option {key:?}; options are distribution, g2, fresnel, symmetric, cosines, \
+                     jacobian, energy, tabulated (belcour), lut (steinberg), precomputed (weidlich_wilkie), \
+                     clamp_roughness, eta2 (steinberg, weidlich_wilkie)"
+                )))
+            }
+        }
+    }
+    Ok(o)
+}
+
+/// f(wi, wo) of a stack under a model: (..., channels). With `flake_normal` (..., 3) and `distance` (..., 1)
+/// (model 'weidlich_wilkie' only) the base is evaluated about normalize(flake + max(distance, 1) ẑ).
 #[pyfunction]
-#[pyo3(signature = (layers, ext_ior, model, wi, wo, distribution="ggx", g2="height_correlated", fresnel="exact", symmetric=false, cosines="frozen", jacobian="j12", energy="fgd", tabulated=true))]
+#[pyo3(signature = (layers, ext_ior, model, wi, wo, options=None, flake_normal=None, distance=None))]
 #[allow(clippy::too_many_arguments)]
 fn eval_stack<'py>(
     py: Python<'py>,
@@ -294,36 +338,82 @@ fn eval_stack<'py>(
     model: &str,
     wi: &Bound<'py, PyAny>,
     wo: &Bound<'py, PyAny>,
-    distribution: &str,
-    g2: &str,
-    fresnel: &str,
-    symmetric: bool,
-    cosines: &str,
-    jacobian: &str,
-    energy: &str,
-    tabulated: bool,
+    options: Option<&Bound<'py, PyDict>>,
+    flake_normal: Option<&Bound<'py, PyAny>>,
+    distance: Option<&Bound<'py, PyAny>>,
 ) -> PyResult<Bound<'py, PyAny>> {
     let stack = parse_stack(layers, ext_ior)?;
-    let choice = |name: &str, value: &str, a: &str, b: &str| match value {
-        v if v == a => Ok(false),
-        v if v == b => Ok(true),
-        v => Err(PyValueError::new_err(format!("{name} must be {a:?} or {b:?}, got {v:?}"))),
+    let opts = parse_options(model, options)?;
+    let prepared = models::prepare(model, &stack, &opts)?;
+    let dirs = [("wi", wi, Kind::Direction), ("wo", wo, Kind::Direction)];
+    match (flake_normal, distance, &prepared) {
+        (None, None, _) => batch(py, &dirs, stack.channels, |r, o| prepared.eval(vec3(&r[0]), vec3(&r[1]), o)),
+        (Some(flake), Some(dist), models::Evaluator::WeidlichWilkie(p)) => batch(
+            py,
+            &[dirs[0], dirs[1], ("flake_normal", flake, Kind::Values(3)), ("distance", dist, Kind::Values(1))],
+            stack.channels,
+            |r, o| p.eval_flake(vec3(&r[0]), vec3(&r[1]), vec3(&r[2]), r[3][0], o),
+        ),
+        (Some(_), Some(_), _) => Err(PyValueError::new_err(format!(
+            "flake_normal: flakes are a feature of model 'weidlich_wilkie', got model {model:?}"
+        ))),
+        _ => Err(PyValueError::new_err("flake_normal and distance must be given together")),
+    }
+}
+
+/// Elek's copper patina: f = (1 − w) f_bare + w f_patina with w = 1 − smoothstep(extent − transition,
+/// extent + transition, mask) per element (model 'weidlich_wilkie'; see models/weidlich_wilkie.rs).
+#[pyfunction]
+#[pyo3(signature = (bare, patina, ext_ior, tint, extent, transition, wi, wo, mask, options=None))]
+#[allow(clippy::too_many_arguments)]
+fn eval_patina<'py>(
+    py: Python<'py>,
+    bare: &Bound<'py, PyList>,
+    patina: &Bound<'py, PyList>,
+    ext_ior: f64,
+    tint: Vec<f64>,
+    extent: f64,
+    transition: f64,
+    wi: &Bound<'py, PyAny>,
+    wo: &Bound<'py, PyAny>,
+    mask: &Bound<'py, PyAny>,
+    options: Option<&Bound<'py, PyDict>>,
+) -> PyResult<Bound<'py, PyAny>> {
+    let (bare, patina) = (parse_stack(bare, ext_ior)?, parse_stack(patina, ext_ior)?);
+    for (name, v, lo, hi) in [("extent", extent, 0.0, 1.0), ("transition", transition, 0.0, 1.0)] {
+        if !(lo..=hi).contains(&v) {
+            return Err(PyValueError::new_err(format!("{name} must be in [{lo}, {hi}], got {v}")));
+        }
+    }
+    if let Some(t) = tint.iter().find(|t| !(0.0..=1.0).contains(*t)) {
+        return Err(PyValueError::new_err(format!("tint must be in [0, 1], got {t}")));
+    }
+    let opts = parse_options("weidlich_wilkie", options)?;
+    let p = models::weidlich_wilkie::Patina::new(&bare, &patina, tint, extent, transition, &opts)?;
+    let inputs = [("wi", wi, Kind::Direction), ("wo", wo, Kind::Direction), ("mask", mask, Kind::Values(1))];
+    batch(py, &inputs, patina.channels, |r, o| p.eval(vec3(&r[0]), vec3(&r[1]), r[2][0], o))
+}
+
+/// Steinberg's table values (t, s) at (μ, α, η) in the `lut` form ('tabulated' or 'fitted'): (..., 2).
+#[pyfunction]
+fn steinberg_lut<'py>(
+    py: Python<'py>,
+    mu: &Bound<'py, PyAny>,
+    alpha: &Bound<'py, PyAny>,
+    eta: &Bound<'py, PyAny>,
+    lut: &str,
+) -> PyResult<Bound<'py, PyAny>> {
+    let fitted = match lut {
+        "tabulated" => false,
+        "fitted" => true,
+        _ => return Err(PyValueError::new_err(format!("lut must be 'tabulated' or 'fitted', got {lut:?}"))),
     };
-    let opts = Options {
-        distribution: parse_distribution(distribution)?,
-        g2: parse_g2(g2)?,
-        fresnel: parse_fresnel(fresnel)?,
-        symmetric,
-        belcour: models::belcour::Variant {
-            real_cosines: choice("cosines", cosines, "frozen", "real")?,
-            jacobian_j21: choice("jacobian", jacobian, "j12", "j21")?,
-            fresnel_energy: choice("energy", energy, "fgd", "fresnel")?,
-        },
-        belcour_table: tabulated,
-    };
-    let model = models::prepare(model, &stack, &opts)?;
-    batch(py, &[("wi", wi, Kind::Direction), ("wo", wo, Kind::Direction)], stack.channels, |r, o| {
-        model.eval(vec3(&r[0]), vec3(&r[1]), o)
+    let table = crate::tables::steinberg::steinberg();
+    let inputs = [("mu", mu, Kind::Values(1)), ("alpha", alpha, Kind::Values(1)), ("eta", eta, Kind::Values(1))];
+    batch(py, &inputs, 2, |r, o| {
+        let (mu, alpha, eta) = (r[0][0], r[1][0], r[2][0]);
+        let (t, s) = if fitted { table.fitted(mu, alpha, eta) } else { table.tabulated(mu, alpha, eta) };
+        o.copy_from_slice(&[t, s]);
     })
 }
 
@@ -651,6 +741,8 @@ fn _lamina(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     m.add_function(wrap_pyfunction!(check_stack, m)?)?;
     m.add_function(wrap_pyfunction!(eval_stack, m)?)?;
+    m.add_function(wrap_pyfunction!(eval_patina, m)?)?;
+    m.add_function(wrap_pyfunction!(steinberg_lut, m)?)?;
     m.add_function(wrap_pyfunction!(fresnel_dielectric, m)?)?;
     m.add_function(wrap_pyfunction!(fresnel_conductor, m)?)?;
     m.add_function(wrap_pyfunction!(fresnel_schlick, m)?)?;

@@ -125,33 +125,41 @@ class Stack:
     def _resolve(self, wavelengths) -> list[dict]:
         return [layer._resolve(wavelengths) for layer in self.layers]
 
-    def eval(self, wi, wo, model: str = "microfacet", *, wavelengths=None, distribution: str = "ggx",
-             g2: str = "height_correlated", fresnel: str = "exact", symmetric: bool = False, cosines: str = "frozen",
-             jacobian: str = "j12", energy: str = "fgd", tabulated: bool = True, samples: int = 10_000,
-             seed: int = 0) -> np.ndarray:
+    def eval(self, wi, wo, model: str = "microfacet", *, wavelengths=None, flake_normal=None, distance=None,
+             samples: int = 10_000, seed: int = 0, **options) -> np.ndarray:
         """The BRDF f(wi, wo), not multiplied by cos θo.
 
         wi, wo: directions (..., 3) in the local frame (z = normal), both pointing away from the surface; they need
         not be unit length and broadcast against each other. Directions below the horizon give 0.
         Returns (..., 3) linear RGB channels, or (..., len(wavelengths)) with `wavelengths` (nm). float32 when both
         inputs are float32, float64 otherwise. Units: 1/sr.
-        Options: `distribution` 'ggx' | 'beckmann'; `g2` 'height_correlated' (default) | 'separable' (Mitsuba 3) |
-        'v_cavity'; `fresnel` 'exact' | 'schlick' | 'lazanyi' (conductors). model="belcour": `symmetric` (the
-        reciprocal variant), and where paper and reference code differ, `cosines` 'frozen' (code) | 'real' (paper)
-        in the transmission roughness scale, `jacobian` 'j12' (code) | 'j21' (paper) in the variance terms,
-        `energy` 'fgd' (table) | 'fresnel' (exact Fresnel at the mean cosine); measured in docs/validation.md;
-        `tabulated` interpolates the adding-doubling from a per-call table over cos θ (512 nodes; False runs it for
-        every evaluation). model="reference" returns the mean of `Stack.reference` with `samples` paths
-        per pair (exact Fresnel)."""
-        if model == "reference":
-            return self.reference(wi, wo, wavelengths=wavelengths, samples=samples, seed=seed,
-                                  distribution=distribution, g2=g2)[0]
-        wl = _wavelengths(wavelengths)
-        wi, wo = broadcast(wi=(wi, 3), wo=(wo, 3))
-        return _lamina.eval_stack(self._resolve(wl), self.ext_ior, model, wi, wo,
-                                  distribution=distribution, g2=g2, fresnel=fresnel, symmetric=bool(symmetric),
-                                  cosines=cosines, jacobian=jacobian, energy=energy, tabulated=bool(tabulated))
 
+        Model options (keyword arguments; an unknown one is a TypeError):
+        - every model: `distribution` 'ggx' | 'beckmann'; `g2` 'height_correlated' | 'separable' (Mitsuba 3) |
+          'v_cavity'; `fresnel` 'exact' | 'schlick' | 'lazanyi'. Defaults: GGX, height-correlated Smith, exact;
+          model="weidlich_wilkie" defaults to Beckmann with the V-cavity G (Torrance–Sparrow).
+        - "belcour": `symmetric` (the reciprocal variant); where paper and reference code differ, `cosines`
+          'frozen' (code) | 'real' (paper), `jacobian` 'j12' (code) | 'j21' (paper), `energy` 'fgd' | 'fresnel';
+          `tabulated` (default True) interpolates the adding-doubling from a per-call table over cos θ.
+        - "steinberg": `lut` 'tabulated' (default) | 'fitted' (the article's closed forms).
+        - "weidlich_wilkie": `precomputed` (Elek's Fresnel and Beckmann tables), `clamp_roughness` (m₂ ≥ m₁);
+          car paint: `flake_normal` (..., 3) flake vectors and `distance` (...) viewing distances, broadcast with
+          the directions; the base is evaluated about normalize(flake + max(distance, 1) ẑ).
+        Measured against the reference in docs/validation.md. model="reference" returns the mean of
+        `Stack.reference` with `samples` paths per pair (exact Fresnel; `distribution` and `g2` apply)."""
+        if model == "reference":
+            unknown = set(options) - {"distribution", "g2"}
+            if unknown:
+                raise TypeError(f"model 'reference' takes the options distribution and g2, got {sorted(unknown)}")
+            return self.reference(wi, wo, wavelengths=wavelengths, samples=samples, seed=seed, **options)[0]
+        wl = _wavelengths(wavelengths)
+        if (flake_normal is None) != (distance is None):
+            raise ValueError("flake_normal and distance must be given together")
+        if flake_normal is None:
+            wi, wo = broadcast(wi=(wi, 3), wo=(wo, 3))
+            return _lamina.eval_stack(self._resolve(wl), self.ext_ior, model, wi, wo, options)
+        wi, wo, fl, d = broadcast(wi=(wi, 3), wo=(wo, 3), flake_normal=(flake_normal, 3), distance=(distance, 0))
+        return _lamina.eval_stack(self._resolve(wl), self.ext_ior, model, wi, wo, options, fl, d)
 
     def reference(self, wi, wo, *, wavelengths=None, samples: int = 100_000, seed: int = 0, progress=None,
                   distribution: str = "ggx", g2: str = "height_correlated"):
@@ -182,7 +190,7 @@ class Stack:
                 "roughness": roughness.reshape(wi.shape[:-1] + roughness.shape[1:])}
 
     def albedo(self, wi, model: str = "microfacet", *, wavelengths=None, samples: int = 100_000, seed: int = 0,
-               progress=None, distribution: str = "ggx", g2: str = "height_correlated", **model_options):
+               progress=None, **model_options):
         """Directional albedo ∫ f(wi, wo) cos θo dωo: the fraction of light from wi that the stack reflects.
 
         wi: (..., 3). Returns (..., channels). For an analytic model the integral is a midpoint quadrature
@@ -197,7 +205,7 @@ class Stack:
             from .reference import tally
 
             mean, err = tally(self._resolve(wl), self.ext_ior, rows, samples, seed, progress=progress,
-                              distribution=distribution, g2=g2)
+                              **model_options)
             shape = wi.shape[:-1] + (mean.shape[1],)
             return mean[..., 0].reshape(shape), err[..., 0].reshape(shape)
         nt, npp = 512, 1024
@@ -206,7 +214,7 @@ class Stack:
         wo = np.stack([np.outer(np.sin(t), np.cos(p)), np.outer(np.sin(t), np.sin(p)),
                        np.repeat(np.cos(t)[:, None], npp, axis=1)], axis=-1)
         weight = (np.cos(t) * np.sin(t))[:, None, None] * (np.pi / 2 / nt) * (2 * np.pi / npp)
-        out = [np.sum(self.eval(w, wo, model, wavelengths=wl, distribution=distribution, g2=g2, **model_options)
+        out = [np.sum(self.eval(w, wo, model, wavelengths=wl, **model_options)
                       * weight, axis=(0, 1)) for w in rows]
         return np.array(out).reshape(wi.shape[:-1] + (len(out[0]),))
 

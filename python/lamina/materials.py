@@ -4,7 +4,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from .layers import Conductor, Dielectric, Diffuse, Roughness, Stack
+from . import _lamina
+from ._arrays import broadcast
+from .layers import Colour, Conductor, Dielectric, Diffuse, Roughness, Stack, _channels
 from .spectrum import IOR_MATERIALS, RGB_WAVELENGTHS, ior
 
 
@@ -70,6 +72,77 @@ SUITE = {
 }
 
 
+def car_paint(coat_absorption: Colour = (0.1, 1.2, 1.5), coat_thickness: float = 1.0, coat_roughness: Roughness = 0.03,
+              flake_roughness: Roughness = 0.25, ior: float = 1.5) -> Stack:
+    """Elek 2010's metallic car paint: a tinted clear coat (absorption 1/scene unit over `coat_thickness`) over a
+    chromium flake base with Elek's RGB complex IOR of Cr (ELEK2010). Evaluate with model="weidlich_wilkie" and
+    per-sample `flake_normal` / `distance` (see `flake_normals`)."""
+    n, k = ELEK2010["Cr"]
+    return Stack([Dielectric(ior, coat_roughness, thickness=coat_thickness, sigma_a=coat_absorption),
+                  Conductor(n, k, flake_roughness)])
+
+
+def flake_normals(uv, density: float = 200.0, spread: float = 0.5, seed: int = 0) -> np.ndarray:
+    """Deterministic procedural flake vectors for `uv` (..., 2): one flake per cell of a `density` x `density` grid
+    per unit of uv, each a tangential vector (x, y, 0) of length spread·√u in a uniformly random direction (u
+    uniform in [0, 1)), hashed from the cell and `seed` (SplitMix64). Returns (..., 3) float64: the `flake_normal`
+    of car-paint evaluation, which tilts the base normal to normalize(flake + max(distance, 1) ẑ)."""
+    uv = np.asarray(uv, dtype=np.float64)
+    if uv.ndim == 0 or uv.shape[-1] != 2 or not np.all(np.isfinite(uv)):
+        raise ValueError(f"uv must be a finite array of shape (..., 2), got shape {uv.shape}")
+    if not (density > 0 and np.isfinite(density)):
+        raise ValueError(f"density must be in (0, inf), got {density}")
+    if not (0 <= spread <= 10):
+        raise ValueError(f"spread must be in [0, 10], got {spread}")
+    cell = np.floor(uv * density).astype(np.int64).view(np.uint64)
+
+    def mix(x):
+        x = (x + np.uint64(0x9E3779B97F4A7C15)) & np.uint64(0xFFFFFFFFFFFFFFFF)
+        x = (x ^ (x >> np.uint64(30))) * np.uint64(0xBF58476D1CE4E5B9)
+        x = (x ^ (x >> np.uint64(27))) * np.uint64(0x94D049BB133111EB)
+        return x ^ (x >> np.uint64(31))
+
+    with np.errstate(over="ignore"):
+        h = mix(mix(cell[..., 0] ^ np.uint64(seed)) ^ cell[..., 1])
+        u1 = (h >> np.uint64(11)).astype(np.float64) / 2.0**53
+        u2 = (mix(h) >> np.uint64(11)).astype(np.float64) / 2.0**53
+    r, phi = spread * np.sqrt(u1), 2 * np.pi * u2
+    return np.stack([r * np.cos(phi), r * np.sin(phi), np.zeros_like(r)], -1)
+
+
+#: Light wavelengths of Elek's RGB channels in µm, for absorption coefficients 4πκ/λ.
+_RGB_UM = np.asarray(RGB_WAVELENGTHS) / 1000.0
+
+
+class Patina:
+    """Elek 2010's copper patina for model="weidlich_wilkie": a cuprite (Cu2O) layer of `thickness` µm over copper,
+    where a grayscale `mask` covers it. Per element, coverage w = 1 − smoothstep(extent − transition,
+    extent + transition, mask); f = (1 − w) f_bare + w f_patina, the patina layer's roughness and IOR going from the
+    bare copper surface's (no layer) to the patina's with w, and the copper under it tarnished by lerp(1, tint, w).
+    The cuprite absorbs σa = 4πκ/λ (Elek's RGB κ) and scatters `scattering` per µm, which gives the diffuse patina
+    term T₁₂ T₂₁ (1 − a) σs/(σa + σs) / π: the light the layer does not transmit, a its transmittance."""
+
+    def __init__(self, extent: float = 0.5, transition: float = 0.1, thickness: float = 0.5,
+                 roughness: Roughness = 0.35, scattering: float = 2.0, copper_roughness: Roughness = 0.15,
+                 tint: Colour = (0.75, 0.45, 0.3)):
+        n_cu, k_cu = ELEK2010["Cu"]
+        n_p, k_p = ELEK2010["Cu2O"]
+        self.bare = Stack([Conductor(n_cu, k_cu, copper_roughness)])
+        sigma_a = tuple((4 * np.pi * np.asarray(k_p) / _RGB_UM).tolist())
+        self.patina = Stack([Dielectric(n_p, roughness, thickness=thickness, sigma_a=sigma_a, sigma_s=scattering),
+                             Conductor(n_cu, k_cu, copper_roughness)])
+        self.extent, self.transition, self.tint = float(extent), float(transition), tint
+        self.eval([0, 0, 1.0], [0, 0, 1.0], 0.0)  # validates the parameters
+
+    def eval(self, wi, wo, mask, **options) -> np.ndarray:
+        """f(wi, wo) where the grayscale map has value `mask` (in [0, 1]); wi, wo (..., 3) and mask (...) broadcast.
+        Returns (..., 3) RGB. Options as for Stack.eval with model="weidlich_wilkie"."""
+        wi, wo, mask = broadcast(wi=(wi, 3), wo=(wo, 3), mask=(mask, 0))
+        return _lamina.eval_patina(self.bare._resolve(None), self.patina._resolve(None), 1.0,
+                                   _channels("tint", self.tint, None), self.extent, self.transition, wi, wo, mask,
+                                   options)
+
+
 def suite(name: str) -> Stack:
     """A material of the validation suite (see SUITE)."""
     try:
@@ -78,4 +151,4 @@ def suite(name: str) -> Stack:
         raise ValueError(f"name must be one of {sorted(SUITE)}, got {name!r}") from None
 
 
-__all__ = ["SUITE", "suite", "metal", "elek2010_rgb", "ELEK2010", "plastic", "preset", "PRESETS", "IOR_MATERIALS"]
+__all__ = ["SUITE", "suite", "car_paint", "flake_normals", "Patina", "metal", "elek2010_rgb", "ELEK2010", "plastic", "preset", "PRESETS", "IOR_MATERIALS"]

@@ -4,6 +4,9 @@
 
 pub mod belcour;
 pub mod microfacet;
+pub mod single_pass;
+pub mod steinberg;
+pub mod weidlich_wilkie;
 
 use crate::optics::fresnel::FresnelForm;
 use crate::optics::microfacet::{Distribution, G2Form};
@@ -11,7 +14,7 @@ use crate::stack::{value_error, Result, Stack};
 use glam::DVec3;
 
 /// Names accepted by `model=`, in the order `lamina.MODELS` lists them.
-pub const MODELS: &[&str] = &["microfacet", "belcour"];
+pub const MODELS: &[&str] = &["microfacet", "belcour", "steinberg", "weidlich_wilkie"];
 
 #[derive(Clone, Copy, Debug)]
 pub struct Options {
@@ -25,6 +28,14 @@ pub struct Options {
     /// Belcour 2018: interpolate the adding-doubling results from a per-call table over cos θ (fast) instead of
     /// running it for every evaluation.
     pub belcour_table: bool,
+    /// Steinberg: the fitted closed forms instead of the tabulated integrals.
+    pub steinberg_fitted: bool,
+    /// Weidlich–Wilkie / Elek: Elek's precomputed Fresnel and Beckmann tables.
+    pub elek_precomputed: bool,
+    /// Single-pass models: each layer at least as rough as the one above (Elek's m₂ ≥ m₁).
+    pub clamp_roughness: bool,
+    /// Single-pass models: the radiance compression 1/η² through each dielectric interface.
+    pub eta2: bool,
 }
 
 impl Default for Options {
@@ -36,6 +47,23 @@ impl Default for Options {
             symmetric: false,
             belcour: belcour::Variant::default(),
             belcour_table: true,
+            steinberg_fitted: false,
+            elek_precomputed: false,
+            clamp_roughness: true,
+            eta2: true,
+        }
+    }
+}
+
+impl Options {
+    /// The defaults of `model`: Weidlich–Wilkie / Elek use Beckmann with the V-cavity G (Torrance–Sparrow); the
+    /// other models GGX with height-correlated Smith.
+    pub fn for_model(model: &str) -> Self {
+        match model {
+            "weidlich_wilkie" => {
+                Options { distribution: Distribution::Beckmann, g2: G2Form::VCavity, ..Options::default() }
+            }
+            _ => Options::default(),
         }
     }
 }
@@ -44,6 +72,8 @@ impl Default for Options {
 pub enum Evaluator {
     Microfacet(microfacet::Prepared),
     Belcour(belcour::Prepared),
+    Steinberg(steinberg::Prepared),
+    WeidlichWilkie(weidlich_wilkie::Prepared),
 }
 
 /// Prepares `model` for `stack`, or explains why the model cannot represent the stack.
@@ -51,6 +81,8 @@ pub fn prepare(model: &str, stack: &Stack, opts: &Options) -> Result<Evaluator> 
     match model {
         "microfacet" => Ok(Evaluator::Microfacet(microfacet::prepare(stack, opts)?)),
         "belcour" => Ok(Evaluator::Belcour(belcour::prepare(stack, opts)?)),
+        "steinberg" => Ok(Evaluator::Steinberg(steinberg::prepare(stack, opts)?)),
+        "weidlich_wilkie" => Ok(Evaluator::WeidlichWilkie(weidlich_wilkie::prepare(stack, opts)?)),
         _ => value_error(format!("model must be one of {MODELS:?}, got {model:?}")),
     }
 }
@@ -61,6 +93,8 @@ impl Evaluator {
         match self {
             Evaluator::Microfacet(p) => p.eval(wi, wo, out),
             Evaluator::Belcour(p) => p.eval(wi, wo, out),
+            Evaluator::Steinberg(p) => p.eval(wi, wo, out),
+            Evaluator::WeidlichWilkie(p) => p.eval(wi, wo, out),
         }
     }
 }

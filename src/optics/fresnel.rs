@@ -112,6 +112,16 @@ impl FresnelForm {
             FresnelForm::Lazanyi => lazanyi(cos_i, eta, k),
         }
     }
+
+    /// Dielectric reflectance of relative IOR η in the chosen form; the approximations (κ = 0) apply for η ≥ 1
+    /// only, the exact form (with total internal reflection) is used for η < 1.
+    pub fn dielectric(self, cos_i: f64, eta: f64) -> f64 {
+        match self {
+            FresnelForm::Exact => dielectric(cos_i, eta),
+            _ if eta < 1.0 => dielectric(cos_i, eta),
+            form => form.conductor(cos_i, eta, 0.0),
+        }
+    }
 }
 
 #[cfg(test)]

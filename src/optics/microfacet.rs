@@ -37,6 +37,16 @@ impl Microfacet {
         }
     }
 
+    /// The same distribution and tangent frame with other roughnesses.
+    pub fn with_alpha(&self, alpha_x: f64, alpha_y: f64) -> Self {
+        Self {
+            alpha_x: alpha_x.max(MIN_ALPHA),
+            alpha_y: alpha_y.max(MIN_ALPHA),
+            smooth: alpha_x == 0.0 && alpha_y == 0.0,
+            ..*self
+        }
+    }
+
     /// True when both roughnesses are zero: the interface is a perfectly smooth (Dirac) one, whose reflection and
     /// refraction are delta lobes that a BSDF evaluation does not return.
     pub fn is_smooth(&self) -> bool {
@@ -70,6 +80,17 @@ impl Microfacet {
             }
             Distribution::Beckmann => (-(x * x + y * y) / z2).exp() / (PI * self.alpha_x * self.alpha_y * z2 * z2),
         }
+    }
+
+    /// Projected roughness α(φ) = √(αx² cos²φ + αy² sin²φ) along the azimuth φ of `w` in the tangent frame (Heitz
+    /// 2014 eq. 80); αx for a direction along the normal.
+    pub fn projected_alpha(&self, w: DVec3) -> f64 {
+        let w = self.tangent(w);
+        let r2 = w.x * w.x + w.y * w.y;
+        if r2 == 0.0 {
+            return self.alpha_x;
+        }
+        (((w.x * self.alpha_x).powi(2) + (w.y * self.alpha_y).powi(2)) / r2).sqrt()
     }
 
     /// Smith Λ(w) of the distribution (Heitz 2014 eq. 72 for GGX, eq. 69 for Beckmann), using the projected

@@ -1,0 +1,200 @@
+//! The structure shared by the single-pass layered models, Steinberg's multi-layered GGX model and Weidlich–Wilkie
+//! 2007 as adapted by Elek 2010: walk the stack once from the top; at each interface add its specular lobe at the
+//! current directions, weighted by the attenuation accumulated above; then refract the light and view directions
+//! into the slab below, attenuate both by Beer–Lambert over the path d (1/cos θi′ + 1/cos θo′), and add the slab's
+//! scattered light as a diffuse term t_i t_o (1 − k) ⊙ c / π. The walk ends at the opaque base (conductor lobe or
+//! diffuse). The models differ in how a dielectric interface transmits (`Passage`) and in their specular term.
+//!
+//! lamina's slabs map onto these models as: extinction σ = σa + σs for the Beer–Lambert factor k, and colour c =
+//! σs / σ (the single-scattering albedo) for the diffuse term of scattering slabs; the HG asymmetry g is not used.
+//! As in both publications, no inter-reflections between layers are modelled; the radiance compression 1/η² across
+//! each interface, which both publications omit, is lamina's option `eta2` (on by default: measured in
+//! docs/validation.md).
+
+use crate::bsdf;
+use crate::optics::diffuse;
+use crate::optics::fresnel::FresnelForm;
+use crate::optics::microfacet::{Distribution, G2Form, Microfacet};
+use crate::sampling::orthonormal_basis;
+use crate::stack::{Layer, Stack};
+use crate::tables::elek::FresnelTable;
+use glam::DVec3;
+use std::f64::consts::FRAC_1_PI;
+
+/// A rough (or smooth) interface with its relative IOR per channel (below / above) and κ for conductors; `table`
+/// holds Elek's precomputed Fresnel table per channel when that variant is used.
+pub struct Interface {
+    pub mf: Microfacet,
+    pub eta: Vec<f64>,
+    pub kappa: Vec<f64>,
+    pub conductor: bool,
+    pub table: Vec<FresnelTable>,
+}
+
+impl Interface {
+    /// Fresnel reflectance of channel `c` at cosine `cos_i` in `form`, or from the precomputed table if any.
+    pub fn fresnel(&self, form: FresnelForm, cos_i: f64, c: usize) -> f64 {
+        match self.table.get(c) {
+            Some(t) => t.lookup(cos_i),
+            None if self.conductor => form.conductor(cos_i, self.eta[c], self.kappa[c]),
+            None => form.dielectric(cos_i, self.eta[c]),
+        }
+    }
+
+    /// Fills `table` with 128-sample Fresnel tables (Elek 2010).
+    pub fn precompute(&mut self, form: FresnelForm) {
+        self.table = (0..self.eta.len()).map(|c| FresnelTable::new(|cos| self.fresnel(form, cos, c))).collect();
+    }
+
+    /// The microfacet reflection lobe F(wi·h) D G2 / (4 cos θi cos θo) of channel `c` (Cook–Torrance 1982).
+    pub fn lobe(&self, g2: G2Form, form: FresnelForm, wi: DVec3, wo: DVec3, c: usize) -> f64 {
+        bsdf::reflection_geometry(&self.mf, g2, wi, wo).map_or(0.0, |(geo, cos_h)| geo * self.fresnel(form, cos_h, c))
+    }
+}
+
+pub enum SpLayer {
+    Dielectric { iface: Interface, thickness: f64, sigma_t: Vec<f64>, albedo: Vec<f64> },
+    Conductor(Interface),
+    Diffuse { albedo: Vec<f64>, sigma: f64 },
+}
+
+impl SpLayer {
+    pub fn interface(&self) -> Option<&Interface> {
+        match self {
+            SpLayer::Dielectric { iface, .. } | SpLayer::Conductor(iface) => Some(iface),
+            SpLayer::Diffuse { .. } => None,
+        }
+    }
+}
+
+/// The stack as single-pass layers. With `clamp_roughness` each layer is at least as rough as the one above
+/// (Elek 2010's m₂ ≥ m₁: a rough coat blurs what lies beneath, which a single pass cannot otherwise express).
+pub fn layers(stack: &Stack, dist: Distribution, clamp_roughness: bool) -> Vec<SpLayer> {
+    let mut above = vec![stack.ext_ior; stack.channels];
+    let mut rough_above = (0.0f64, 0.0f64);
+    let mut out = Vec::with_capacity(stack.layers.len());
+    for layer in &stack.layers {
+        let iface = |alpha: (f64, f64), angle: f64, n: &[f64], k: &[f64], conductor: bool| {
+            let alpha = if clamp_roughness { (alpha.0.max(rough_above.0), alpha.1.max(rough_above.1)) } else { alpha };
+            Interface {
+                mf: Microfacet::new(dist, alpha.0, alpha.1, angle),
+                eta: n.iter().zip(&above).map(|(n, a)| n / a).collect(),
+                kappa: k.iter().zip(&above).map(|(k, a)| k / a).collect(),
+                conductor,
+                table: Vec::new(),
+            }
+        };
+        match layer {
+            Layer::Dielectric { ior, alpha, angle, thickness, sigma_a, sigma_s, .. } => {
+                let sigma_t: Vec<f64> = sigma_a.iter().zip(sigma_s).map(|(a, s)| a + s).collect();
+                let albedo = sigma_s.iter().zip(&sigma_t).map(|(s, t)| if *t > 0.0 { s / t } else { 0.0 }).collect();
+                out.push(SpLayer::Dielectric {
+                    iface: iface(*alpha, *angle, ior, &vec![0.0; ior.len()], false),
+                    thickness: *thickness,
+                    sigma_t,
+                    albedo,
+                });
+                above = ior.clone();
+                rough_above = (rough_above.0.max(alpha.0), rough_above.1.max(alpha.1));
+            }
+            Layer::Conductor { ior, k, alpha, angle } => {
+                out.push(SpLayer::Conductor(iface(*alpha, *angle, ior, k, true)))
+            }
+            Layer::Diffuse { albedo, roughness } => {
+                out.push(SpLayer::Diffuse { albedo: albedo.clone(), sigma: *roughness })
+            }
+        }
+    }
+    out
+}
+
+/// What a dielectric interface passes to the slab below for one channel: the light's transmission into the slab,
+/// the factor on the view side that multiplies everything below, the view-side transmission that multiplies the
+/// slab's scattering, and the refracted directions (pointing up, away from the slab's bottom).
+pub struct Passage {
+    pub t_light: f64,
+    pub t_view: f64,
+    pub t_view_slab: f64,
+    pub wi: DVec3,
+    pub wo: DVec3,
+}
+
+/// Direction `w` refracted into a slab and flipped to point up: same azimuth, sine `sin_t`.
+pub fn refracted_up(w: DVec3, sin_t: f64) -> DVec3 {
+    let r = w.x.hypot(w.y);
+    let cos_t = (1.0 - sin_t * sin_t).max(0.0).sqrt();
+    if r == 0.0 {
+        return DVec3::new(0.0, 0.0, cos_t);
+    }
+    DVec3::new(w.x / r * sin_t, w.y / r * sin_t, cos_t)
+}
+
+/// Beer–Lambert transmittance exp(−σ d (1/cos θi + 1/cos θo)) along both refracted directions.
+pub fn beer_lambert(sigma_t: f64, thickness: f64, wi: DVec3, wo: DVec3) -> f64 {
+    if sigma_t * thickness == 0.0 {
+        return 1.0;
+    }
+    (-sigma_t * thickness * (1.0 / wi.z.max(1e-9) + 1.0 / wo.z.max(1e-9))).exp()
+}
+
+/// Modifiers of the opaque base: a tilted normal (car-paint flakes) and a tint of its contribution (tarnish).
+#[derive(Clone, Copy)]
+pub struct Base {
+    pub normal: Option<DVec3>,
+    pub tint: f64,
+}
+
+pub const PLAIN_BASE: Base = Base { normal: None, tint: 1.0 };
+
+/// f for channel `c`: `specular` is an interface's lobe at (wi, wo), `transmit` its passage into the slab below
+/// (None: nothing gets through). With `eta2` every passage through a dielectric interface also carries the radiance
+/// compression 1/η² of the exact smooth-coat result (f = T(θi) T(θo) f_below(θi′, θo′) / η², e.g. Mitsuba's
+/// `plastic`), which neither publication has.
+pub fn eval(
+    layers: &[SpLayer],
+    wi: DVec3,
+    wo: DVec3,
+    c: usize,
+    base: Base,
+    eta2: bool,
+    specular: impl Fn(&Interface, DVec3, DVec3, usize) -> f64,
+    transmit: impl Fn(&Interface, DVec3, DVec3, usize) -> Option<Passage>,
+) -> f64 {
+    let (mut wi, mut wo) = (wi, wo);
+    let mut weight = 1.0;
+    let mut f = 0.0;
+    for layer in layers {
+        match layer {
+            SpLayer::Dielectric { iface, thickness, sigma_t, albedo } => {
+                f += weight * specular(iface, wi, wo, c);
+                let Some(p) = transmit(iface, wi, wo, c) else { break };
+                let k = beer_lambert(sigma_t[c], *thickness, p.wi, p.wo);
+                let compression = if eta2 { 1.0 / (iface.eta[c] * iface.eta[c]) } else { 1.0 };
+                f += weight * p.t_light * p.t_view_slab * compression * (1.0 - k) * albedo[c] * FRAC_1_PI;
+                weight *= p.t_light * p.t_view * compression * k;
+                (wi, wo) = (p.wi, p.wo);
+                if weight == 0.0 {
+                    break;
+                }
+            }
+            opaque => {
+                let (wi, wo) = match base.normal {
+                    Some(n) => {
+                        let (t, b) = orthonormal_basis(n);
+                        let local = |w: DVec3| DVec3::new(w.dot(t), w.dot(b), w.dot(n));
+                        (local(wi), local(wo))
+                    }
+                    None => (wi, wo),
+                };
+                f += weight
+                    * base.tint
+                    * match opaque {
+                        SpLayer::Conductor(iface) => specular(iface, wi, wo, c),
+                        SpLayer::Diffuse { albedo, sigma } => albedo[c] * diffuse::oren_nayar_shape(*sigma, wi, wo),
+                        SpLayer::Dielectric { .. } => unreachable!(),
+                    };
+            }
+        }
+    }
+    f
+}

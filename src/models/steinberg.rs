@@ -1,0 +1,86 @@
+//! `model="steinberg"`: Steinberg 2016, "Light Transport in a Multi-Layered Microfacet Model" — one pass through
+//! the stack (models/single_pass.rs) with a Cook–Torrance GGX lobe per interface; a dielectric interface transmits
+//! t(wo) t(wi), the mean Fresnel transmissions over the visible microfacets, and bends both directions to the mean
+//! refracted directions, both from lamina's tables (tables/steinberg.rs, tabulated or fitted form).
+//!
+//! Anisotropic layers (lamina's analytic approximation; the article names a 3D LUT or an analytic form): each
+//! direction looks the tables up with the projected roughness α(φ) of its azimuth in the layer's tangent frame —
+//! the roughness that the Smith masking of that direction sees — and stays in its plane of incidence. The lobes
+//! themselves use the full anisotropic D and G2.
+
+use super::single_pass::{self, refracted_up, Passage, SpLayer, PLAIN_BASE};
+use super::Options;
+use crate::optics::fresnel::FresnelForm;
+use crate::optics::microfacet::{Distribution, G2Form};
+use crate::stack::{value_error, Result, Stack};
+use crate::tables::steinberg::{self as lut, steinberg};
+use glam::DVec3;
+
+pub struct Prepared {
+    layers: Vec<SpLayer>,
+    g2: G2Form,
+    fresnel: FresnelForm,
+    eta2: bool,
+    fitted: bool,
+}
+
+pub fn prepare(stack: &Stack, opts: &Options) -> Result<Prepared> {
+    if opts.distribution != Distribution::Ggx {
+        return value_error("distribution: model 'steinberg' is defined for 'ggx' only (its tables are GGX)");
+    }
+    let layers = single_pass::layers(stack, Distribution::Ggx, opts.clamp_roughness);
+    for (i, layer) in layers.iter().enumerate() {
+        if let SpLayer::Dielectric { iface, .. } = layer {
+            if let Some(eta) = iface.eta.iter().find(|e| !(lut::ETA_MIN..=lut::ETA_MAX).contains(*e)) {
+                return value_error(format!(
+                    "layer {i}: model 'steinberg' tabulates relative IORs (this layer's over the one above) in \
+                     [{}, {}], got {eta}",
+                    lut::ETA_MIN,
+                    lut::ETA_MAX
+                ));
+            }
+        }
+    }
+    steinberg(); // generate or load the tables outside the parallel evaluation
+    Ok(Prepared { layers, g2: opts.g2, fresnel: opts.fresnel, eta2: opts.eta2, fitted: opts.steinberg_fitted })
+}
+
+impl Prepared {
+    pub fn eval(&self, wi: DVec3, wo: DVec3, out: &mut [f64]) {
+        out.fill(0.0);
+        if wi.z <= 0.0 || wo.z <= 0.0 {
+            return;
+        }
+        let table = steinberg();
+        let lookup = |w: DVec3, iface: &single_pass::Interface, c: usize| {
+            let alpha = if iface.mf.is_smooth() { 0.0 } else { iface.mf.projected_alpha(w) };
+            if self.fitted {
+                table.fitted(w.z, alpha, iface.eta[c])
+            } else {
+                table.tabulated(w.z, alpha, iface.eta[c])
+            }
+        };
+        for (c, o) in out.iter_mut().enumerate() {
+            *o = single_pass::eval(
+                &self.layers,
+                wi,
+                wo,
+                c,
+                PLAIN_BASE,
+                self.eta2,
+                |iface, wi, wo, c| iface.lobe(self.g2, self.fresnel, wi, wo, c),
+                |iface, wi, wo, c| {
+                    let (t_i, s_i) = lookup(wi, iface, c);
+                    let (t_o, s_o) = lookup(wo, iface, c);
+                    Some(Passage {
+                        t_light: t_i,
+                        t_view: t_o,
+                        t_view_slab: t_o,
+                        wi: refracted_up(wi, s_i),
+                        wo: refracted_up(wo, s_o),
+                    })
+                },
+            );
+        }
+    }
+}

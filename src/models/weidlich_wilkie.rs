@@ -1,0 +1,204 @@
+//! `model="weidlich_wilkie"`: Weidlich & Wilkie 2007, "Arbitrarily layered micro-facet surfaces", in the recursive
+//! form of Elek 2010 — f⁽ⁱ⁾(L, V) = f_i(L, V) + T₁₂ · f⁽ⁱ⁺¹⁾(L′, V′) · a_i · t_i, with L′, V′ refracted by Snell's law
+//! at the macro-surface, a_i = exp(−σ d (1/cos θL′ + 1/cos θV′)), t_i = (1 − G_i) + T₂₁ G_i, T₁₂ = 1 − F(cos θL) and
+//! T₂₁ = 1 − F(cos θV). Each f_i is a Torrance–Sparrow lobe (by default Beckmann D and the V-cavity G); the base is
+//! a conductor lobe or Lambert / Oren–Nayar. Unrolled by models/single_pass.rs.
+//!
+//! Options: the Fresnel form (exact or Lazányi–Szirmay-Kalos), Elek's m₂ ≥ m₁ roughness clamp, and Elek's
+//! precomputed variant (tables/elek.rs: 128-sample Fresnel tables and the 512 × 512 Beckmann table).
+//! Car paint: a per-sample base normal normalize(flake + max(distance, 1) ẑ) (Elek's distance-based smoothing).
+//! Copper patina: `eval_patina`.
+
+use super::single_pass::{self, refracted_up, Base, Passage, SpLayer};
+use super::Options;
+use crate::optics::fresnel::FresnelForm;
+use crate::optics::microfacet::{Distribution, G2Form};
+use crate::stack::{value_error, Layer, Result, Stack};
+use crate::tables::elek::beckmann_table;
+use glam::DVec3;
+
+pub struct Prepared {
+    layers: Vec<SpLayer>,
+    g2: G2Form,
+    fresnel: FresnelForm,
+    eta2: bool,
+    precomputed: bool,
+}
+
+pub fn prepare(stack: &Stack, opts: &Options) -> Result<Prepared> {
+    let mut layers = single_pass::layers(stack, opts.distribution, opts.clamp_roughness);
+    let precomputed = opts.elek_precomputed;
+    if precomputed {
+        for layer in &mut layers {
+            if let SpLayer::Dielectric { iface, .. } | SpLayer::Conductor(iface) = layer {
+                iface.precompute(opts.fresnel);
+            }
+        }
+        beckmann_table();
+    }
+    Ok(Prepared { layers, g2: opts.g2, fresnel: opts.fresnel, eta2: opts.eta2, precomputed })
+}
+
+impl Prepared {
+    /// Torrance–Sparrow lobe of one interface; the precomputed variant takes D from Elek's table (isotropic
+    /// Beckmann interfaces; others keep the analytic D).
+    fn lobe(&self, iface: &single_pass::Interface, wi: DVec3, wo: DVec3, c: usize) -> f64 {
+        let f = iface.lobe(self.g2, self.fresnel, wi, wo, c);
+        let mf = &iface.mf;
+        if !self.precomputed || f == 0.0 || mf.dist != Distribution::Beckmann || mf.alpha_x != mf.alpha_y {
+            return f;
+        }
+        let h = (wi + wo).normalize();
+        f * beckmann_table().lookup(h.z, mf.alpha_x) / mf.d(h)
+    }
+
+    fn passage(&self, iface: &single_pass::Interface, wi: DVec3, wo: DVec3, c: usize) -> Option<Passage> {
+        let eta = iface.eta[c];
+        let (sin_i, sin_o) = (wi.x.hypot(wi.y) / eta, wo.x.hypot(wo.y) / eta);
+        if sin_i >= 1.0 || sin_o >= 1.0 {
+            return None; // total internal reflection at the macro-surface
+        }
+        let t12 = 1.0 - iface.fresnel(self.fresnel, wi.z, c);
+        let t21 = 1.0 - iface.fresnel(self.fresnel, wo.z, c);
+        let g = if iface.mf.is_smooth() { 1.0 } else { iface.mf.g2(self.g2, wi, wo, (wi + wo).normalize()) };
+        Some(Passage {
+            t_light: t12,
+            t_view: (1.0 - g) + t21 * g,
+            t_view_slab: t21,
+            wi: refracted_up(wi, sin_i),
+            wo: refracted_up(wo, sin_o),
+        })
+    }
+
+    fn eval_layers(&self, layers: &[SpLayer], wi: DVec3, wo: DVec3, base: &[Base], out: &mut [f64]) {
+        out.fill(0.0);
+        if wi.z <= 0.0 || wo.z <= 0.0 {
+            return;
+        }
+        for (c, o) in out.iter_mut().enumerate() {
+            *o = single_pass::eval(
+                layers,
+                wi,
+                wo,
+                c,
+                base[c.min(base.len() - 1)],
+                self.eta2,
+                |iface, wi, wo, c| self.lobe(iface, wi, wo, c),
+                |iface, wi, wo, c| self.passage(iface, wi, wo, c),
+            );
+        }
+    }
+
+    pub fn eval(&self, wi: DVec3, wo: DVec3, out: &mut [f64]) {
+        self.eval_layers(&self.layers, wi, wo, &[single_pass::PLAIN_BASE], out);
+    }
+
+    /// Car paint: the base evaluated about a flake normal `flake` smoothed by the viewing `distance`.
+    pub fn eval_flake(&self, wi: DVec3, wo: DVec3, flake: DVec3, distance: f64, out: &mut [f64]) {
+        let n = (flake + distance.max(1.0) * DVec3::Z).normalize();
+        self.eval_layers(&self.layers, wi, wo, &[Base { normal: Some(n), tint: 1.0 }], out);
+    }
+}
+
+/// The copper-patina material (Elek 2010): a bare stack and a patina stack whose top layer is the patina.
+pub struct Patina {
+    pub bare: Prepared,
+    pub patina: Prepared,
+    /// The bare top roughness: where the patina layer's roughness starts.
+    pub bare_alpha: (f64, f64),
+    /// Tarnish tone multiplying the base under the patina, per channel.
+    pub tint: Vec<f64>,
+    pub extent: f64,
+    pub transition: f64,
+}
+
+/// GLSL smoothstep: 0 below `a`, 1 above `b`, 3t² − 2t³ between.
+pub fn smoothstep(a: f64, b: f64, x: f64) -> f64 {
+    if b <= a {
+        return if x < a { 0.0 } else { 1.0 };
+    }
+    let t = ((x - a) / (b - a)).clamp(0.0, 1.0);
+    t * t * (3.0 - 2.0 * t)
+}
+
+impl Patina {
+    pub fn new(
+        bare: &Stack,
+        patina: &Stack,
+        tint: Vec<f64>,
+        extent: f64,
+        transition: f64,
+        opts: &Options,
+    ) -> Result<Self> {
+        if !matches!(patina.layers[..], [Layer::Dielectric { .. }, _]) {
+            return value_error("patina: the patina stack must be the patina (a Dielectric layer) over an opaque base");
+        }
+        if tint.len() != patina.channels {
+            return value_error(format!("tint has {} channels but the stack has {}", tint.len(), patina.channels));
+        }
+        let bare_alpha = match bare.layers.first() {
+            Some(Layer::Dielectric { alpha, .. } | Layer::Conductor { alpha, .. }) => *alpha,
+            _ => (0.0, 0.0),
+        };
+        Ok(Patina { bare: prepare(bare, opts)?, patina: prepare(patina, opts)?, bare_alpha, tint, extent, transition })
+    }
+
+    /// extentFactor = 1 − smoothstep(extent − transition, extent + transition, mask): 1 where the patina covers.
+    pub fn coverage(&self, mask: f64) -> f64 {
+        1.0 - smoothstep(self.extent - self.transition, self.extent + self.transition, mask)
+    }
+
+    /// f = (1 − w) f_bare + w f_patina, where the patina layer's roughness and IOR go from the bare surface's (the
+    /// outside medium's IOR: no layer) to the patina's with w, and the base is tinted by lerp(1, tint, w).
+    pub fn eval(&self, wi: DVec3, wo: DVec3, mask: f64, out: &mut [f64]) {
+        let w = self.coverage(mask);
+        let mut bare = vec![0.0; out.len()];
+        if w < 1.0 {
+            self.bare.eval(wi, wo, &mut bare);
+        }
+        out.fill(0.0);
+        if w > 0.0 {
+            let [SpLayer::Dielectric { iface, thickness, sigma_t, albedo }, base] = &self.patina.layers[..] else {
+                unreachable!("checked in Patina::new")
+            };
+            let lerp = |a: f64, b: f64| a + w * (b - a);
+            // The patina's relative IOR over the outside goes from 1 (no layer) to its own; the base's relative
+            // IOR follows the medium above it.
+            let eta_top: Vec<f64> = iface.eta.iter().map(|e| lerp(1.0, *e)).collect();
+            let rescale = |v: &[f64]| -> Vec<f64> {
+                v.iter().zip(&iface.eta).zip(&eta_top).map(|((x, e), t)| x * e / t).collect()
+            };
+            let top = SpLayer::Dielectric {
+                iface: single_pass::Interface {
+                    mf: iface.mf.with_alpha(
+                        lerp(self.bare_alpha.0, iface.mf.alpha_x),
+                        lerp(self.bare_alpha.1, iface.mf.alpha_y),
+                    ),
+                    eta: eta_top.clone(),
+                    kappa: iface.kappa.clone(),
+                    conductor: false,
+                    table: Vec::new(),
+                },
+                thickness: *thickness,
+                sigma_t: sigma_t.clone(),
+                albedo: albedo.clone(),
+            };
+            let base = match base {
+                SpLayer::Conductor(b) => SpLayer::Conductor(single_pass::Interface {
+                    mf: b.mf,
+                    eta: rescale(&b.eta),
+                    kappa: rescale(&b.kappa),
+                    conductor: true,
+                    table: Vec::new(),
+                }),
+                SpLayer::Diffuse { albedo, sigma } => SpLayer::Diffuse { albedo: albedo.clone(), sigma: *sigma },
+                SpLayer::Dielectric { .. } => unreachable!("checked in Patina::new"),
+            };
+            let tint: Vec<Base> = self.tint.iter().map(|t| Base { normal: None, tint: lerp(1.0, *t) }).collect();
+            self.patina.eval_layers(&[top, base], wi, wo, &tint, out);
+        }
+        for (o, b) in out.iter_mut().zip(&bare) {
+            *o = (1.0 - w) * b + w * *o;
+        }
+    }
+}

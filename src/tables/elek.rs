@@ -1,0 +1,76 @@
+//! Elek 2010's precomputed shading tables: a 1D Fresnel table per interface and channel (128 samples of F over
+//! cos θ in [0, 1], linear interpolation) and one 2D table of the Beckmann distribution D(cos θh, m) (512 × 512,
+//! cos θh stored through the non-linear coordinate u = cos⁸θh, which puts most nodes near the peak at cos θh = 1;
+//! m uniform in [0, 1]; bilinear interpolation). The D table takes ~10 ms to build, so it is built per process and
+//! not cached on disk.
+
+use super::node;
+use crate::optics::microfacet::MIN_ALPHA;
+use std::f64::consts::PI;
+use std::sync::OnceLock;
+
+pub const FRESNEL_SAMPLES: usize = 128;
+pub const D_SIZE: usize = 512;
+
+/// F(cos θ) sampled at 128 cosines uniform in [0, 1].
+pub struct FresnelTable([f32; FRESNEL_SAMPLES]);
+
+impl FresnelTable {
+    pub fn new(f: impl Fn(f64) -> f64) -> Self {
+        FresnelTable(std::array::from_fn(|i| f(i as f64 / (FRESNEL_SAMPLES - 1) as f64) as f32))
+    }
+
+    pub fn lookup(&self, cos_theta: f64) -> f64 {
+        let (i, t) = node(cos_theta, FRESNEL_SAMPLES);
+        (1.0 - t) * self.0[i] as f64 + t * self.0[i + 1] as f64
+    }
+}
+
+/// Isotropic Beckmann D (Walter et al. 2007 eq. 25) of roughness m at cos θh.
+fn beckmann(cos_h: f64, m: f64) -> f64 {
+    let m = m.max(MIN_ALPHA);
+    if cos_h <= 0.0 {
+        return 0.0;
+    }
+    let c2 = cos_h * cos_h;
+    (-(1.0 - c2) / (c2 * m * m)).exp() / (PI * m * m * c2 * c2)
+}
+
+/// [m][u] with u = cos⁸θh.
+pub struct BeckmannTable(Vec<f32>);
+
+impl BeckmannTable {
+    pub fn lookup(&self, cos_h: f64, m: f64) -> f64 {
+        let (i, fi) = node(m, D_SIZE);
+        let (j, fj) = node(cos_h.max(0.0).powi(8), D_SIZE);
+        let at = |a: usize, b: usize| self.0[a * D_SIZE + b] as f64;
+        (1.0 - fi) * ((1.0 - fj) * at(i, j) + fj * at(i, j + 1))
+            + fi * ((1.0 - fj) * at(i + 1, j) + fj * at(i + 1, j + 1))
+    }
+}
+
+pub fn beckmann_table() -> &'static BeckmannTable {
+    static TABLE: OnceLock<BeckmannTable> = OnceLock::new();
+    TABLE.get_or_init(|| {
+        let step = 1.0 / (D_SIZE - 1) as f64;
+        BeckmannTable(
+            (0..D_SIZE * D_SIZE)
+                .map(|k| beckmann(((k % D_SIZE) as f64 * step).powf(1.0 / 8.0), (k / D_SIZE) as f64 * step) as f32)
+                .collect(),
+        )
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn tables_are_exact_at_nodes() {
+        let t = beckmann_table();
+        let (cos_h, m) = ((300.0f64 / 511.0).powf(1.0 / 8.0), 100.0 / 511.0);
+        assert!((t.lookup(cos_h, m) / beckmann(cos_h, m) - 1.0).abs() < 1e-5);
+        let f = FresnelTable::new(|c| c * c);
+        assert!((f.lookup(1.0) - 1.0).abs() < 1e-7 && (f.lookup(0.5) - 0.25).abs() < 1e-4);
+    }
+}

@@ -1,0 +1,255 @@
+//! Steinberg's two integrals without closed form, for one rough GGX dielectric interface seen from above along a
+//! direction v of cosine μ, relative IOR η (below / above) and roughness α:
+//! - t(μ, α, η): the mean Fresnel transmission over the microfacets visible from v, E_{m∼D_v}[1 − F(v·m, η)];
+//! - s(μ, α, η): the sine of the mean refracted direction, normalize(E_{m∼D_v}[refract(v, m)]) over the
+//!   refractions that go down (total internal reflections and refractions that leave the macro-surface are
+//!   discarded); it lies in the plane of incidence, opposite to v. When nothing refracts, s = 1 (and t ≈ 0).
+//!
+//! Tabulated form: μ uniform in [0, 1] (64 nodes), α uniform in [0, 1] (32), η log-uniform in [1/4, 4] (48),
+//! 512 stratified visible normals per (μ, α); trilinear interpolation. Fitted form (Steinberg's article): per
+//! (α, η) node, t ≈ m((erf(aμ − b) + 1) + cμ) + d (0 ≤ c, m ≤ 1) and s ≈ a₁e^{a₂μ} + b₁e^{b₂μ}, fitted to the
+//! tabulated μ column by weighted Levenberg–Marquardt (weights 10 at μ = 0 and 100 at μ = 1 for t, 10 at both ends
+//! for s), bilinear in (α, log η) between nodes. The fit error against the table is reported in docs/validation.md.
+
+use super::{cached, fit, node, visible_normals};
+use crate::optics::fresnel;
+use crate::optics::microfacet::{Distribution, Microfacet};
+use crate::optics::refract;
+use glam::DVec3;
+use rayon::prelude::*;
+use std::sync::OnceLock;
+
+pub const N_MU: usize = 64;
+pub const N_ALPHA: usize = 32;
+pub const N_ETA: usize = 48;
+pub const ETA_MIN: f64 = 0.25;
+pub const ETA_MAX: f64 = 4.0;
+const QUADRATURE: usize = 512;
+const VERSION: u32 = 1;
+const T_PARAMS: usize = 5;
+const S_PARAMS: usize = 4;
+
+pub fn mu_at(i: usize) -> f64 {
+    (i as f64 / (N_MU - 1) as f64).max(1e-3)
+}
+
+pub fn alpha_at(i: usize) -> f64 {
+    i as f64 / (N_ALPHA - 1) as f64
+}
+
+pub fn eta_at(i: usize) -> f64 {
+    ETA_MIN * (ETA_MAX / ETA_MIN).powf(i as f64 / (N_ETA - 1) as f64)
+}
+
+fn eta_coord(eta: f64) -> f64 {
+    (eta / ETA_MIN).ln() / (ETA_MAX / ETA_MIN).ln()
+}
+
+/// t and s of one (μ, α, η) by quadrature over `normals` (the visible normals from v), or exactly for a smooth
+/// interface (Fresnel and Snell).
+fn integrate(v: DVec3, normals: &[DVec3], eta: f64) -> (f64, f64) {
+    if normals.is_empty() {
+        let sin_t = (1.0 - v.z * v.z).sqrt() / eta;
+        return (1.0 - fresnel::dielectric(v.z, eta), sin_t.min(1.0));
+    }
+    let mut t = 0.0;
+    let mut mean = DVec3::ZERO;
+    for &m in normals {
+        t += 1.0 - fresnel::dielectric(v.dot(m), eta);
+        if let Some(d) = refract(v, m, eta).filter(|d| d.z < 0.0) {
+            mean += d;
+        }
+    }
+    let t = t / normals.len() as f64;
+    let len = mean.length();
+    let s = if len > 0.0 { (mean.x.hypot(mean.y) / len).min(1.0) } else { 1.0 };
+    (t, s)
+}
+
+/// Transmission model m((erf(aμ − b) + 1) + cμ) + d, parameters (a, b, c, d, m).
+pub fn t_model(p: &[f64; T_PARAMS], mu: f64) -> f64 {
+    p[4] * ((libm::erf(p[0] * mu - p[1]) + 1.0) + p[2] * mu) + p[3]
+}
+
+/// Refraction model a₁e^{a₂μ} + b₁e^{b₂μ}, parameters (a₁, a₂, b₁, b₂).
+pub fn s_model(p: &[f64; S_PARAMS], mu: f64) -> f64 {
+    p[0] * (p[1] * mu).exp() + p[2] * (p[3] * mu).exp()
+}
+
+pub struct Steinberg {
+    /// [μ][α][η][t, s]
+    table: Vec<f32>,
+    /// [α][η][a, b, c, d, m, a₁, a₂, b₁, b₂]
+    fits: Vec<f32>,
+}
+
+impl Steinberg {
+    fn generate_table() -> Vec<f32> {
+        (0..N_MU * N_ALPHA)
+            .into_par_iter()
+            .flat_map_iter(|cell| {
+                let (mu, alpha) = (mu_at(cell / N_ALPHA), alpha_at(cell % N_ALPHA));
+                let v = DVec3::new((1.0 - mu * mu).sqrt(), 0.0, mu);
+                let normals = if alpha == 0.0 {
+                    vec![]
+                } else {
+                    visible_normals(&Microfacet::new(Distribution::Ggx, alpha, alpha, 0.0), v, QUADRATURE)
+                };
+                (0..N_ETA).flat_map(move |e| {
+                    let (t, s) = integrate(v, &normals, eta_at(e));
+                    [t as f32, s as f32]
+                })
+            })
+            .collect()
+    }
+
+    /// Fits both closed forms to every (α, η) column of the table; along α each fit starts from its neighbour's.
+    fn generate_fits(table: &[f32]) -> Vec<f32> {
+        let xs: Vec<f64> = (0..N_MU).map(mu_at).collect();
+        let edge = |inner: f64, last: f64| -> Vec<f64> {
+            (0..N_MU)
+                .map(|i| {
+                    if i == 0 {
+                        10.0
+                    } else if i == N_MU - 1 {
+                        last
+                    } else {
+                        inner
+                    }
+                })
+                .collect()
+        };
+        let (wt, ws) = (edge(1.0, 100.0), edge(1.0, 10.0));
+        let column = |a: usize, e: usize, k: usize| -> Vec<f64> {
+            (0..N_MU).map(|m| table[((m * N_ALPHA + a) * N_ETA + e) * 2 + k] as f64).collect()
+        };
+        let per_eta: Vec<Vec<f32>> = (0..N_ETA)
+            .into_par_iter()
+            .map(|e| {
+                let mut out = vec![0f32; N_ALPHA * (T_PARAMS + S_PARAMS)];
+                let (mut prev_t, mut prev_s) = ([8.0, 1.0, 0.0, 0.0, 0.5], [-0.5, 3.0, 1.0, -1.0]);
+                for a in 0..N_ALPHA {
+                    let (ts, ss) = (column(a, e, 0), column(a, e, 1));
+                    let inf = 1e3;
+                    let best_t =
+                        [prev_t, [0.0, 0.0, 0.0, 0.0, 0.5], [5.0, 0.0, 0.0, 0.0, 0.5], [20.0, 1.0, 0.0, 0.0, 0.5]]
+                            .into_iter()
+                            .map(|start| {
+                                fit::levenberg_marquardt(
+                                    t_model,
+                                    &xs,
+                                    &ts,
+                                    &wt,
+                                    start,
+                                    [-inf, -inf, 0.0, -inf, 0.0],
+                                    [inf, inf, 1.0, inf, 1.0],
+                                )
+                            })
+                            .min_by(|x, y| x.1.total_cmp(&y.1))
+                            .unwrap()
+                            .0;
+                    let best_s = [prev_s, [1.0, -1.0, 0.0, 0.0], [-0.5, 3.0, 1.0, -1.0], [0.7, -0.5, -0.01, 4.0]]
+                        .into_iter()
+                        .map(|start| fit::levenberg_marquardt(s_model, &xs, &ss, &ws, start, [-inf; 4], [inf; 4]))
+                        .min_by(|x, y| x.1.total_cmp(&y.1))
+                        .unwrap()
+                        .0;
+                    (prev_t, prev_s) = (best_t, best_s);
+                    let dst = &mut out[a * (T_PARAMS + S_PARAMS)..(a + 1) * (T_PARAMS + S_PARAMS)];
+                    for (d, v) in dst.iter_mut().zip(best_t.iter().chain(&best_s)) {
+                        *d = *v as f32;
+                    }
+                }
+                out
+            })
+            .collect();
+        // Reorder [η][α] → [α][η].
+        let stride = T_PARAMS + S_PARAMS;
+        let mut fits = vec![0f32; N_ALPHA * N_ETA * stride];
+        for (e, col) in per_eta.iter().enumerate() {
+            for a in 0..N_ALPHA {
+                fits[(a * N_ETA + e) * stride..(a * N_ETA + e + 1) * stride]
+                    .copy_from_slice(&col[a * stride..(a + 1) * stride]);
+            }
+        }
+        fits
+    }
+
+    /// (t, s) from the table, trilinear in (μ, α, log η).
+    pub fn tabulated(&self, mu: f64, alpha: f64, eta: f64) -> (f64, f64) {
+        let (i, fi) = node(mu, N_MU);
+        let (j, fj) = node(alpha, N_ALPHA);
+        let (k, fk) = node(eta_coord(eta), N_ETA);
+        let (mut t, mut s) = (0.0, 0.0);
+        for (di, wi) in [(0, 1.0 - fi), (1, fi)] {
+            for (dj, wj) in [(0, 1.0 - fj), (1, fj)] {
+                for (dk, wk) in [(0, 1.0 - fk), (1, fk)] {
+                    let w = wi * wj * wk;
+                    let idx = (((i + di) * N_ALPHA + j + dj) * N_ETA + k + dk) * 2;
+                    t += w * self.table[idx] as f64;
+                    s += w * self.table[idx + 1] as f64;
+                }
+            }
+        }
+        (t, s)
+    }
+
+    /// (t, s) from the fitted closed forms, bilinear in (α, log η) between the fitted nodes, clamped to [0, 1].
+    pub fn fitted(&self, mu: f64, alpha: f64, eta: f64) -> (f64, f64) {
+        let (j, fj) = node(alpha, N_ALPHA);
+        let (k, fk) = node(eta_coord(eta), N_ETA);
+        let stride = T_PARAMS + S_PARAMS;
+        let (mut t, mut s) = (0.0, 0.0);
+        for (dj, wj) in [(0, 1.0 - fj), (1, fj)] {
+            for (dk, wk) in [(0, 1.0 - fk), (1, fk)] {
+                let w = wj * wk;
+                let c = &self.fits[((j + dj) * N_ETA + k + dk) * stride..][..stride];
+                let pt: [f64; T_PARAMS] = std::array::from_fn(|q| c[q] as f64);
+                let ps: [f64; S_PARAMS] = std::array::from_fn(|q| c[T_PARAMS + q] as f64);
+                t += w * t_model(&pt, mu);
+                s += w * s_model(&ps, mu);
+            }
+        }
+        (t.clamp(0.0, 1.0), s.clamp(0.0, 1.0))
+    }
+}
+
+/// The Steinberg tables: loaded from the cache when present, else generated (a few seconds) and cached.
+pub fn steinberg() -> &'static Steinberg {
+    static TABLE: OnceLock<Steinberg> = OnceLock::new();
+    TABLE.get_or_init(|| {
+        let dims = format!("{N_MU}x{N_ALPHA}x{N_ETA}");
+        let table =
+            cached(&format!("steinberg-v{VERSION}-{dims}.f32"), N_MU * N_ALPHA * N_ETA * 2, Steinberg::generate_table);
+        let fits =
+            cached(&format!("steinberg-fit-v{VERSION}-{dims}.f32"), N_ALPHA * N_ETA * (T_PARAMS + S_PARAMS), || {
+                Steinberg::generate_fits(&table)
+            });
+        Steinberg { table, fits }
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn smooth_limit_is_fresnel_and_snell() {
+        let t = steinberg();
+        let (mu, eta) = (mu_at(40), eta_at(30));
+        let (tt, s) = t.tabulated(mu, 0.0, eta);
+        assert!((tt - (1.0 - fresnel::dielectric(mu, eta))).abs() < 1e-6);
+        assert!((s - (1.0 - mu * mu).sqrt() / eta).abs() < 1e-6);
+    }
+
+    #[test]
+    fn matches_a_fine_quadrature_between_nodes() {
+        // η = 1.5, α = 0.5, μ = 0.5: t and s from 65536 visible normals.
+        let (mu, alpha, eta) = (0.5, 0.5, 1.5);
+        let v = DVec3::new((1.0f64 - mu * mu).sqrt(), 0.0, mu);
+        let normals = visible_normals(&Microfacet::new(Distribution::Ggx, alpha, alpha, 0.0), v, 65536);
+        let (t_ref, s_ref) = integrate(v, &normals, eta);
+        let (t, s) = steinberg().tabulated(mu, alpha, eta);
+        assert!((t - t_ref).abs() < 3e-3 && (s - s_ref).abs() < 3e-3, "{t} {t_ref} {s} {s_ref}");
+    }
+}
