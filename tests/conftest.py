@@ -78,3 +78,31 @@ def mitsuba_f(bsdf: dict, wi: np.ndarray, wo: np.ndarray, variant: str = MI_RGB,
 @pytest.fixture
 def rng():
     return np.random.default_rng(20261122)
+
+
+@pytest.fixture(scope="session")
+def suite_reference(tmp_path_factory):
+    """Reference f of a suite material on the suite grid, 20k paths per direction (seed 0), computed afresh in this
+    session (a regression guard must not trust a stale cache) and shared by every model's guard:
+    name -> (wi, wo, f, stderr)."""
+    import os
+
+    from lamina import reference as R
+
+    cache = tmp_path_factory.mktemp("reference-cache")
+    results = {}
+
+    def get(name: str):
+        if name not in results:
+            old = os.environ.get("LAMINA_CACHE")
+            os.environ["LAMINA_CACHE"] = str(cache)
+            try:
+                results[name] = R.suite_reference(name, samples=20_000)
+            finally:
+                if old is None:
+                    del os.environ["LAMINA_CACHE"]
+                else:
+                    os.environ["LAMINA_CACHE"] = old
+        return results[name]
+
+    return get

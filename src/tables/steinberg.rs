@@ -6,7 +6,9 @@
 //!   discarded); it lies in the plane of incidence, opposite to v. When nothing refracts, s = 1 (and t ≈ 0).
 //!
 //! Tabulated form: μ uniform in [0, 1] (64 nodes), α uniform in [0, 1] (32), η log-uniform in [1/4, 4] (48),
-//! 512 stratified visible normals per (μ, α); trilinear interpolation. Fitted form (Steinberg's article): per
+//! 512 stratified visible normals per (μ, α); trilinear interpolation of t and of s / sin θ (constant, 1/η, for a
+//! smooth interface, so that interpolation keeps Snell's law exact; interpolating s itself lets the view-to-slab map
+//! deviate from Snell near μ = 1, where it is steep, and the albedo of a smooth coat then exceeds 1). Fitted form (Steinberg's article): per
 //! (α, η) node, t ≈ m((erf(aμ − b) + 1) + cμ) + d (0 ≤ c, m ≤ 1) and s ≈ a₁e^{a₂μ} + b₁e^{b₂μ}, fitted to the
 //! tabulated μ column by weighted Levenberg–Marquardt (weights 10 at μ = 0 and 100 at μ = 1 for t, 10 at both ends
 //! for s), bilinear in (α, log η) between nodes. The fit error against the table is reported in docs/validation.md.
@@ -25,12 +27,12 @@ pub const N_ETA: usize = 48;
 pub const ETA_MIN: f64 = 0.25;
 pub const ETA_MAX: f64 = 4.0;
 const QUADRATURE: usize = 512;
-const VERSION: u32 = 1;
+const VERSION: u32 = 2;
 const T_PARAMS: usize = 5;
 const S_PARAMS: usize = 4;
 
 pub fn mu_at(i: usize) -> f64 {
-    (i as f64 / (N_MU - 1) as f64).max(1e-3)
+    (i as f64 / (N_MU - 1) as f64).clamp(1e-3, 1.0 - 1e-9)
 }
 
 pub fn alpha_at(i: usize) -> f64 {
@@ -77,7 +79,7 @@ pub fn s_model(p: &[f64; S_PARAMS], mu: f64) -> f64 {
 }
 
 pub struct Steinberg {
-    /// [μ][α][η][t, s]
+    /// [μ][α][η][t, s / sin θ]
     table: Vec<f32>,
     /// [α][η][a, b, c, d, m, a₁, a₂, b₁, b₂]
     fits: Vec<f32>,
@@ -97,7 +99,7 @@ impl Steinberg {
                 };
                 (0..N_ETA).flat_map(move |e| {
                     let (t, s) = integrate(v, &normals, eta_at(e));
-                    [t as f32, s as f32]
+                    [t as f32, (s / v.x) as f32]
                 })
             })
             .collect()
@@ -121,7 +123,8 @@ impl Steinberg {
         };
         let (wt, ws) = (edge(1.0, 100.0), edge(1.0, 10.0));
         let column = |a: usize, e: usize, k: usize| -> Vec<f64> {
-            (0..N_MU).map(|m| table[((m * N_ALPHA + a) * N_ETA + e) * 2 + k] as f64).collect()
+            let sin = |m: usize| if k == 1 { (1.0 - mu_at(m).powi(2)).sqrt() } else { 1.0 };
+            (0..N_MU).map(|m| table[((m * N_ALPHA + a) * N_ETA + e) * 2 + k] as f64 * sin(m)).collect()
         };
         let per_eta: Vec<Vec<f32>> = (0..N_ETA)
             .into_par_iter()
@@ -175,7 +178,7 @@ impl Steinberg {
         fits
     }
 
-    /// (t, s) from the table, trilinear in (μ, α, log η).
+    /// (t, s) from the table, trilinear in (μ, α, log η) (s through s / sin θ).
     pub fn tabulated(&self, mu: f64, alpha: f64, eta: f64) -> (f64, f64) {
         let (i, fi) = node(mu, N_MU);
         let (j, fj) = node(alpha, N_ALPHA);
@@ -191,7 +194,7 @@ impl Steinberg {
                 }
             }
         }
-        (t, s)
+        (t, (s * (1.0 - mu * mu).max(0.0).sqrt()).min(1.0))
     }
 
     /// (t, s) from the fitted closed forms, bilinear in (α, log η) between the fitted nodes, clamped to [0, 1].

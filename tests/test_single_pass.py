@@ -1,0 +1,265 @@
+"""The single-pass layered models: Steinberg's multi-layered GGX model and Weidlich–Wilkie / Elek 2010. Exact
+reductions, physics on random stacks (extremes included), the tables, car paint and patina, bad input, and their
+measured error against the Monte Carlo reference on the material suite (regression guards; numbers in
+docs/validation.md)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+import lamina
+from lamina import _lamina
+from conftest import random_hemisphere
+
+SINGLE_PASS = ("steinberg", "weidlich_wilkie")
+
+
+def fresnel(cos, eta):
+    return lamina.optics.fresnel_dielectric(np.asarray(cos), np.asarray(eta))
+
+
+@pytest.mark.parametrize("rough", [0.05, 0.3, (0.1, 0.4)])
+def test_one_interface_equals_the_microfacet_brdf(rough, rng):
+    stack = lamina.Stack([lamina.Conductor((0.2, 0.45, 1.4), (3.6, 2.5, 1.9), rough, angle=0.3)])
+    wi, wo = random_hemisphere(rng, 500), random_hemisphere(rng, 500)
+    np.testing.assert_allclose(stack.eval(wi, wo, "steinberg"), stack.eval(wi, wo), rtol=1e-12)
+    ts = dict(distribution="beckmann", g2="v_cavity")
+    np.testing.assert_allclose(stack.eval(wi, wo, "weidlich_wilkie"), stack.eval(wi, wo, **ts), rtol=1e-12)
+    np.testing.assert_allclose(stack.eval(wi, wo, "weidlich_wilkie", fresnel="lazanyi"),
+                               stack.eval(wi, wo, fresnel="lazanyi", **ts), rtol=1e-12)
+
+
+@pytest.mark.parametrize("model", SINGLE_PASS)
+def test_smooth_coat_over_lambert_is_the_single_pass_closed_form(model, rng):
+    """A smooth absorbing coat over Lambert: f = T(θi) T(θo) a ρ / (π η²), a = exp(−σ d (1/cos θi′ + 1/cos θo′)) —
+    the exact smooth-coat result without the inter-reflections 1/(1 − ρ F̄_int) (Steinberg's tables are exact at
+    α = 0 on their μ nodes and linear between them: 2e-3)."""
+    eta, rho, sigma, d = 1.5, np.array([0.9, 0.5, 0.1]), np.array([0.1, 0.3, 0.0]), 0.7
+    stack = lamina.Stack([lamina.Dielectric(eta, thickness=d, sigma_a=sigma), lamina.Diffuse(rho)])
+    wi, wo = random_hemisphere(rng, 300, 0.05), random_hemisphere(rng, 300, 0.05)
+    cos_t = lambda w: np.sqrt(1 - (1 - w[:, 2] ** 2) / eta**2)  # noqa: E731
+    a = np.exp(-sigma * d * (1 / cos_t(wi) + 1 / cos_t(wo))[:, None])
+    expected = ((1 - fresnel(wi[:, 2:], eta)) * (1 - fresnel(wo[:, 2:], eta)) * a * rho / (np.pi * eta**2))
+    rtol = 2e-3 if model == "steinberg" else 1e-12
+    np.testing.assert_allclose(stack.eval(wi, wo, model), expected, rtol=rtol)
+    np.testing.assert_allclose(stack.eval(wi, wo, model, eta2=False), expected * eta**2, rtol=rtol)
+
+
+def test_rotating_layers_and_directions_together_leaves_f_unchanged(rng):
+    def stack(turn):
+        return lamina.Stack([lamina.Dielectric(1.5, (0.1, 0.4), angle=0.5 + turn),
+                             lamina.materials.metal("Al", (0.35, 0.08), angle=-0.4 + turn)])
+    wi, wo = random_hemisphere(rng, 300), random_hemisphere(rng, 300)
+    c, s = np.cos(0.8), np.sin(0.8)
+    rot = np.array([[c, -s, 0], [s, c, 0], [0, 0, 1.0]])
+    for model in SINGLE_PASS:
+        np.testing.assert_allclose(stack(0.8).eval(wi @ rot.T, wo @ rot.T, model), stack(0.0).eval(wi, wo, model),
+                                   rtol=1e-9)
+
+
+random_stacks = st.builds(
+    lambda ior, a1, d, sa, ss, k, a2, diffuse, ior0, a0, two: lamina.Stack(
+        ([lamina.Dielectric(ior0, a0)] if two else [])
+        + [lamina.Dielectric(ior, a1, thickness=d, sigma_a=sa, sigma_s=ss),
+           lamina.Diffuse(1.0, roughness=a2) if diffuse else lamina.Conductor(0.05, k, a2)]),
+    st.floats(1.001, 2.5), st.floats(0.0, 1.0), st.floats(0.0, 20.0), st.floats(0.0, 5.0), st.floats(0.0, 5.0),
+    st.floats(3.0, 10.0), st.floats(0.1, 1.0), st.booleans(), st.floats(1.001, 2.0), st.floats(0.0, 1.0),
+    st.booleans(),
+)
+
+
+@settings(max_examples=25, deadline=None)
+@given(random_stacks, st.sampled_from([0.0, 30.0, 60.0, 80.0, 89.0, 89.99]))
+def test_finite_non_negative_albedo_at_most_one(stack, theta):
+    """White or near-perfect bases (the hardest case for energy), grazing incidence included. The inner lobes are at
+    least α = 0.1 so that the 512 x 1024 midpoint quadrature of the albedo resolves them; α → 0 is covered by
+    test_extremes_stay_finite. 1e-3: quadrature."""
+    t = np.radians(theta)
+    wi = np.array([np.sin(t), 0.0, np.cos(t)])
+    for model in SINGLE_PASS:
+        albedo = stack.albedo(wi, model)
+        assert np.all(np.isfinite(albedo)) and np.all(albedo >= 0) and np.all(albedo <= 1 + 1e-3), (model, albedo)
+
+
+def test_extremes_stay_finite(rng):
+    """θ → 90°, α → 0 and α = 1, η → 1, total internal reflection (a denser layer over a lighter one) and a very
+    thick absorbing slab."""
+    stacks = [
+        lamina.Stack([lamina.Dielectric(1.8, 0.0), lamina.Dielectric(1.2, 1.0), lamina.Conductor(0.2, 3.0, 0.0)]),
+        lamina.Stack([lamina.Dielectric(1.0 + 1e-9, 1e-6), lamina.Diffuse(0.5)]),
+        lamina.Stack([lamina.Dielectric(1.5, 0.2, thickness=1e6, sigma_a=10.0), lamina.Diffuse(0.9)]),
+        lamina.Stack([lamina.Dielectric(2.5, 1.0, thickness=1.0, sigma_s=50.0), lamina.Conductor(0.2, 3.0, 1.0)]),
+    ]
+    wi = np.concatenate([random_hemisphere(rng, 200), [[1.0, 0.0, 1e-12], [0.0, 0.0, 1.0]]])
+    wo = np.concatenate([random_hemisphere(rng, 200), [[-1.0, 1e-3, 1e-9], [1.0, 0.0, 1e-15]]])
+    for stack in stacks:
+        for model in SINGLE_PASS:
+            for kw in ({}, {"lut": "fitted"} if model == "steinberg" else {"precomputed": True}):
+                f = stack.eval(wi, wo, model, **kw)
+                assert np.all(np.isfinite(f)) and np.all(f >= 0), (stack, model, kw)
+    # Nothing comes back through a very thick absorbing slab: only the top lobe remains.
+    top_only = lamina.Stack([lamina.Dielectric(1.5, 0.2), lamina.Diffuse(0.0)])
+    for model in SINGLE_PASS:
+        np.testing.assert_allclose(stacks[2].eval(wi, wo, model), top_only.eval(wi, wo, model), rtol=1e-12)
+
+
+def test_steinberg_tables():
+    """The tabulated integrals at α = 0 are Fresnel and Snell; the fitted closed forms follow the table within the
+    error measured over every (μ, α, η) node (docs/validation.md; guard: measured + 0.01)."""
+    mu = np.linspace(0.05, 1.0, 40)
+    eta = np.full_like(mu, 1.5)
+    ts = _lamina.steinberg_lut(mu[:, None], np.zeros((40, 1)), eta[:, None], "tabulated")
+    # Linear interpolation between the 64 μ nodes of the smooth case: 2e-3 (the Snell sine is steep near μ = 1).
+    np.testing.assert_allclose(ts[:, 0], 1 - fresnel(mu, 1.5), atol=2e-3)
+    np.testing.assert_allclose(ts[:, 1], np.sqrt(1 - mu**2) / 1.5, atol=2e-2)
+    err = fit_error()
+    for key, measured in MEASURED_FIT.items():
+        assert err[key] <= measured + 0.01, (key, err[key])
+
+
+#: Max |fitted − tabulated| over the table nodes with η ≥ 1 and with η < 1 (total internal reflection, whose kink
+#: at the critical angle the erf and exp2 forms cannot follow), measured; docs/validation.md has the full report.
+MEASURED_FIT = {"t_max η≥1": 0.054, "s_max η≥1": 0.078, "t_max η<1": 0.495, "s_max η<1": 0.386}
+
+
+def fit_error() -> dict:
+    """Max and RMS |fitted − tabulated| of t and s over every node of Steinberg's table (64 μ x 32 α x 48 η)."""
+    mu = np.maximum(np.linspace(0, 1, 64), 1e-3)
+    alpha = np.linspace(0, 1, 32)
+    eta = 0.25 * 16.0 ** np.linspace(0, 1, 48)
+    grid = [g[..., None] for g in np.meshgrid(mu, alpha, eta, indexing="ij")]
+    d = _lamina.steinberg_lut(*grid, "fitted") - _lamina.steinberg_lut(*grid, "tabulated")
+    out = {}
+    for label, sel in (("η≥1", eta >= 1), ("η<1", eta < 1)):
+        for k, name in ((0, "t"), (1, "s")):
+            e = d[:, :, sel, k]
+            out[f"{name}_max {label}"] = float(np.abs(e).max())
+            out[f"{name}_rms {label}"] = float(np.sqrt(np.mean(e**2)))
+    return out
+
+
+def test_car_paint_flakes():
+    paint = lamina.materials.car_paint()
+    wi = np.array([0.3, 0.0, 0.95])
+    wo = unit_rows(np.array([[-0.32, 0.02, 0.95], [-0.5, 0.1, 0.86], [0.1, -0.4, 0.9]]))
+    plain = paint.eval(wi, wo, "weidlich_wilkie")
+    np.testing.assert_allclose(paint.eval(wi, wo, "weidlich_wilkie", flake_normal=np.zeros(3), distance=1.0), plain,
+                               rtol=1e-12)
+    # Far away the flakes are smoothed out: N = normalize(flake + distance ẑ) → ẑ.
+    flakes = lamina.materials.flake_normals(np.array([[0.1, 0.2], [0.3, 0.4], [0.5, 0.9]]), spread=0.8)
+    far = paint.eval(wi, wo, "weidlich_wilkie", flake_normal=flakes, distance=1e9)
+    np.testing.assert_allclose(far, plain, rtol=1e-6)
+    near = paint.eval(wi, wo, "weidlich_wilkie", flake_normal=flakes, distance=1.0)
+    assert np.all(np.isfinite(near)) and not np.allclose(near, plain, rtol=1e-3)
+
+
+def test_flake_generator_is_deterministic_with_the_stated_distribution(rng):
+    uv = rng.random((20000, 2))
+    a = lamina.materials.flake_normals(uv, density=50, spread=0.4, seed=3)
+    np.testing.assert_array_equal(a, lamina.materials.flake_normals(uv, density=50, spread=0.4, seed=3))
+    assert not np.allclose(a, lamina.materials.flake_normals(uv, density=50, spread=0.4, seed=4))
+    r = np.linalg.norm(a, axis=-1)
+    assert np.all(a[:, 2] == 0) and r.max() <= 0.4
+    # 2500 cells: r = spread·√u has mean 2/3·spread and standard deviation spread·√(1/2 − 4/9).
+    cells = np.unique(np.floor(uv * 50), axis=0, return_index=True)[1]
+    se = 0.4 * np.sqrt(0.5 - 4 / 9) / np.sqrt(len(cells))
+    assert abs(r[cells].mean() - 0.4 * 2 / 3) < 4 * se
+    # Same cell, same flake.
+    np.testing.assert_array_equal(lamina.materials.flake_normals(np.array([[0.101, 0.2], [0.109, 0.2]]), 50),
+                                  lamina.materials.flake_normals(np.array([[0.105, 0.2], [0.105, 0.2]]), 50))
+
+
+def test_patina_coverage_and_tint(rng):
+    wi, wo = random_hemisphere(rng, 100), random_hemisphere(rng, 100)
+    p = lamina.materials.Patina(extent=0.5, transition=0.1, tint=(1.0, 1.0, 1.0))
+    np.testing.assert_allclose(p.eval(wi, wo, 0.9), p.bare.eval(wi, wo, "weidlich_wilkie"), rtol=1e-12)
+    np.testing.assert_allclose(p.eval(wi, wo, 0.1), p.patina.eval(wi, wo, "weidlich_wilkie"), rtol=1e-12)
+    # The tint multiplies what the copper under the patina returns: f is linear in it.
+    tinted = lamina.materials.Patina(extent=0.5, transition=0.1, tint=(0.5, 0.3, 0.2)).eval(wi, wo, 0.0)
+    layer = p.patina.layers[0]
+    top = lamina.Stack([layer, lamina.Diffuse(0.0)]).eval(wi, wo, "weidlich_wilkie")
+    np.testing.assert_allclose(tinted, top + np.array([0.5, 0.3, 0.2]) * (p.eval(wi, wo, 0.0) - top), rtol=1e-9,
+                               atol=1e-15)
+    # Inside the transition the coverage follows the smoothstep and f stays between the bare and patina values
+    # channel by channel is not guaranteed (roughness and IOR change with it); it must stay finite and positive.
+    mid = p.eval(wi, wo, np.linspace(0.35, 0.65, 100))
+    assert np.all(np.isfinite(mid)) and np.all(mid >= 0)
+
+
+def test_bad_input_names_the_parameter():
+    stack = lamina.materials.suite("gold-clearcoat")
+    w = np.array([0.0, 0.0, 1.0])
+    with pytest.raises(ValueError, match="distribution"):
+        stack.eval(w, w, "steinberg", distribution="beckmann")
+    with pytest.raises(ValueError, match=r"relative IOR.*\[0.25, 4"):
+        lamina.Stack([lamina.Dielectric(5.0), lamina.Diffuse(0.5)]).eval(w, w, "steinberg")
+    with pytest.raises(TypeError, match="unknown model option"):
+        stack.eval(w, w, "weidlich_wilkie", lutt="fitted")
+    with pytest.raises(ValueError, match="lut"):
+        stack.eval(w, w, "steinberg", lut="erf")
+    with pytest.raises(TypeError, match="precomputed must be a bool"):
+        stack.eval(w, w, "weidlich_wilkie", precomputed="yes")
+    with pytest.raises(ValueError, match="flake_normal"):
+        stack.eval(w, w, "steinberg", flake_normal=w, distance=1.0)
+    with pytest.raises(ValueError, match="together"):
+        stack.eval(w, w, "weidlich_wilkie", flake_normal=w)
+    with pytest.raises(ValueError, match="flake_normal contains NaN"):
+        stack.eval(w, w, "weidlich_wilkie", flake_normal=[np.nan, 0, 0], distance=1.0)
+    with pytest.raises(ValueError, match="extent must be in"):
+        lamina.materials.Patina(extent=2.0)
+    with pytest.raises(ValueError, match="tint must be in"):
+        lamina.materials.Patina(tint=(2.0, 0.5, 0.5))
+    with pytest.raises(ValueError, match="mask contains NaN"):
+        lamina.materials.Patina().eval(w, w, np.nan)
+
+
+def unit_rows(w):
+    return w / np.linalg.norm(w, axis=-1, keepdims=True)
+
+
+# Relative L1 error of f over the suite's outgoing grid, averaged over θi ∈ {0°, 30°, 60°}, 20k reference paths
+# per direction (seed 0); default options of each model. Guards: measured + 0.05 (absolute).
+MEASURED_LOBE_ERROR = {
+    "steinberg": {"anisotropic-coat-metal": 0.546, "frosted-metal": 0.708, "gold-clearcoat": 0.131,
+                  "rough-coat-rough-copper": 0.126, "scattering-slab": 0.822, "thick-absorbing-slab": 0.044,
+                  "three-layer": 0.13, "varnished-diffuse": 0.187},
+    "weidlich_wilkie": {"anisotropic-coat-metal": 0.557, "frosted-metal": 0.78, "gold-clearcoat": 0.231,
+                        "rough-coat-rough-copper": 0.184, "scattering-slab": 0.823, "thick-absorbing-slab": 0.187,
+                        "three-layer": 0.226, "varnished-diffuse": 0.186},
+}
+
+
+@pytest.mark.parametrize("model", SINGLE_PASS)
+@pytest.mark.parametrize("name", sorted(lamina.materials.SUITE))
+def test_error_against_reference_does_not_regress(model, name, suite_reference):
+    wi, wo, f, _ = suite_reference(name)
+    b = lamina.materials.suite(name).eval(wi, wo, model)
+    err = (np.abs(b - f).sum(axis=(1, 2)) / np.abs(f).sum(axis=(1, 2)))[:3].mean()
+    assert err <= MEASURED_LOBE_ERROR[model][name] + 0.05, f"{model} {name}: lobe error {err:.3f}"
+
+
+def precomputed_error(stack: lamina.Stack, rng, n: int = 20000) -> float:
+    """Relative L1 difference between Elek's precomputed variant and the full evaluation over random pairs."""
+    wi, wo = random_hemisphere(rng, n), random_hemisphere(rng, n)
+    full = stack.eval(wi, wo, "weidlich_wilkie", clamp_roughness=False)
+    pre = stack.eval(wi, wo, "weidlich_wilkie", clamp_roughness=False, precomputed=True)
+    return float(np.abs(pre - full).sum() / np.abs(full).sum())
+
+
+#: Elek 2010 reports < 6% for his tables. Measured (seed 0): the suite stacks within 0.03%; a polished (α = 0.02)
+#: aluminium base, whose Beckmann peak the 512 u = cos⁸θh nodes under-resolve, 12%. Guards: measured + 0.005.
+MEASURED_PRECOMPUTED = {
+    "gold-clearcoat": 0.0001, "rough-coat-rough-copper": 0.0001, "three-layer": 0.0003, "varnished-diffuse": 0.0001,
+    "polished-aluminium-under-smooth-coat": 0.121,
+}
+
+
+@pytest.mark.parametrize("name", sorted(MEASURED_PRECOMPUTED))
+def test_elek_precomputed_tables_stay_close_to_the_full_evaluation(name):
+    stack = (lamina.Stack([lamina.Dielectric(1.5), lamina.materials.metal("Al", 0.02)])
+             if name.startswith("polished") else lamina.materials.suite(name))
+    err = precomputed_error(stack, np.random.default_rng(0))
+    assert err <= MEASURED_PRECOMPUTED[name] + 0.005, err
