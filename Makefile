@@ -45,6 +45,7 @@ test: rust-test py-test
 
 bench: develop test-deps
 	$(LLVM) $(VPY) benchmarks/bench_conductor.py
+	$(LLVM) $(VPY) benchmarks/bench_layered.py
 	$(VPY) benchmarks/bench_reference.py
 
 # Regenerates docs/validation.md from measurements against Mitsuba 3 and colour-science.

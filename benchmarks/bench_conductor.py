@@ -77,8 +77,6 @@ def main() -> None:
     wi64, wo64 = hemi(N), hemi(N)
     wi32, wo32 = wi64.astype(np.float32), wo64.astype(np.float32)
     stack = lamina.Stack([lamina.Conductor(ETA, K, ALPHA)])
-    coat2, coat3 = lamina.materials.suite("rough-coat-rough-copper"), lamina.materials.suite("three-layer")
-    coat2.eval(wi32[:10], wo32[:10], "belcour")  # builds (or loads) the FGD table outside the timings
 
     import drjit as dr
     import mitsuba as mi
@@ -99,8 +97,6 @@ def main() -> None:
         "lamina float64 in/out": lambda: stack.eval(wi64, wo64, g2="separable"),
         "lamina float32, fresnel='schlick'": lambda: stack.eval(wi32, wo32, g2="separable", fresnel="schlick"),
         "NumPy float64": lambda: numpy_conductor(wi64, wo64),
-        "lamina belcour, 2 layers (rough coat over rough copper), float32": lambda: coat2.eval(wi32, wo32, "belcour"),
-        "lamina belcour, 3 layers (three-layer suite material), float32": lambda: coat3.eval(wi32, wo32, "belcour"),
         "Mitsuba 3 llvm_ad_rgb (float32)": mitsuba_eval,
     })
     # Same answers (to float32) before any figure is reported.
@@ -134,12 +130,6 @@ def main() -> None:
         "",
         f"**lamina (float32) / Mitsuba 3 llvm_ad_rgb throughput ratio: {mitsuba_t / ours:.2f}x** "
         f"(float64: {mitsuba_t / rows['lamina float64 in/out'][0]:.2f}x).",
-        "",
-        "**Belcour 2018 (lamina, isotropic) / Mitsuba single-lobe roughconductor throughput: "
-        f"{mitsuba_t / rows['lamina belcour, 2 layers (rough coat over rough copper), float32'][0]:.2f}x for 2 layers, "
-        f"{mitsuba_t / rows['lamina belcour, 3 layers (three-layer suite material), float32'][0]:.2f}x for 3 layers** "
-        "(issue 4's goal for 2 layers: 0.5x). Belcour interpolates its adding-doubling from a per-call table over "
-        "cos θ (512 nodes, built in each call; `tabulated=False` runs the loop per evaluation, ~8x slower).",
         "",
         "Where the time goes (measured while writing this benchmark): the exact conductor Fresnel costs two square "
         "roots and three divisions per channel, evaluated in scalar float64; Mitsuba's LLVM backend evaluates 8 float32 "

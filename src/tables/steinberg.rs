@@ -27,7 +27,7 @@ pub const N_ETA: usize = 48;
 pub const ETA_MIN: f64 = 0.25;
 pub const ETA_MAX: f64 = 4.0;
 const QUADRATURE: usize = 512;
-const VERSION: u32 = 2;
+const VERSION: u32 = 3;
 const T_PARAMS: usize = 5;
 const S_PARAMS: usize = 4;
 
@@ -87,7 +87,7 @@ pub struct Steinberg {
 
 impl Steinberg {
     fn generate_table() -> Vec<f32> {
-        (0..N_MU * N_ALPHA)
+        let mut table: Vec<f32> = (0..N_MU * N_ALPHA)
             .into_par_iter()
             .flat_map_iter(|cell| {
                 let (mu, alpha) = (mu_at(cell / N_ALPHA), alpha_at(cell % N_ALPHA));
@@ -102,7 +102,14 @@ impl Steinberg {
                     [t as f32, (s / v.x) as f32]
                 })
             })
-            .collect()
+            .collect();
+        // At μ = 1 the ratio s / sin θ is 0/0 (and quadrature noise over a vanishing sine): take its limit from the
+        // neighbouring node (s / sin θ is even in θ, so the error is O(θ²)).
+        let row = N_ALPHA * N_ETA * 2;
+        for k in (1..row).step_by(2) {
+            table[(N_MU - 1) * row + k] = table[(N_MU - 2) * row + k];
+        }
+        table
     }
 
     /// Fits both closed forms to every (α, η) column of the table; along α each fit starts from its neighbour's.
