@@ -174,7 +174,7 @@ def test_flake_generator_is_deterministic_with_the_stated_distribution(rng):
 
 def test_patina_coverage_and_tint(rng):
     wi, wo = random_hemisphere(rng, 100), random_hemisphere(rng, 100)
-    p = lamina.materials.Patina(extent=0.5, transition=0.1, tint=(1.0, 1.0, 1.0))
+    p = lamina.materials.patina(extent=0.5, transition=0.1, tint=(1.0, 1.0, 1.0))
     np.testing.assert_allclose(p.eval(wi, wo, 0.9), p.bare.eval(wi, wo, "weidlich_wilkie"), rtol=1e-12)
     np.testing.assert_allclose(p.eval(wi, wo, 0.1), p.patina.eval(wi, wo, "weidlich_wilkie"), rtol=1e-12)
     # The tint multiplies what the copper under the patina returns: f is linear in it.

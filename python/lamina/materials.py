@@ -115,7 +115,8 @@ _RGB_UM = np.asarray(RGB_WAVELENGTHS) / 1000.0
 
 
 class Patina:
-    """Elek 2010's copper patina for model="weidlich_wilkie": a cuprite (Cu2O) layer of `thickness` µm over copper,
+    """Elek 2010's copper patina for model="weidlich_wilkie" (Elek's RGB n, κ of Cu and Cu2O: ELEK2010): a cuprite
+    (Cu2O) layer of `thickness` µm over copper,
     where a grayscale `mask` covers it. Per element, coverage w = 1 − smoothstep(extent − transition,
     extent + transition, mask); f = (1 − w) f_bare + w f_patina, the patina layer's roughness and IOR going from the
     bare copper surface's (no layer) to the patina's with w, and the copper under it tarnished by lerp(1, tint, w).
@@ -143,6 +144,11 @@ class Patina:
                                    options)
 
 
+def patina(extent: float = 0.5, transition: float = 0.1, **params) -> Patina:
+    """Elek 2010's copper patina preset (see `Patina` for `params`); evaluate with `.eval(wi, wo, mask)`."""
+    return Patina(extent, transition, **params)
+
+
 def suite(name: str) -> Stack:
     """A material of the validation suite (see SUITE)."""
     try:
@@ -151,4 +157,4 @@ def suite(name: str) -> Stack:
         raise ValueError(f"name must be one of {sorted(SUITE)}, got {name!r}") from None
 
 
-__all__ = ["SUITE", "suite", "car_paint", "flake_normals", "Patina", "metal", "elek2010_rgb", "ELEK2010", "plastic", "preset", "PRESETS", "IOR_MATERIALS"]
+__all__ = ["SUITE", "suite", "car_paint", "flake_normals", "Patina", "patina", "metal", "elek2010_rgb", "ELEK2010", "plastic", "preset", "PRESETS", "IOR_MATERIALS"]
