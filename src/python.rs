@@ -616,24 +616,23 @@ fn jacobian<'py>(
     })
 }
 
-/// Lobe energies (n, lobes, channels) and roughnesses (n, lobes).
-type Lobes = (Vec<Vec<Vec<f64>>>, Vec<Vec<f64>>);
+/// Lobe energies (n, lobes, channels), covariances (n, lobes, [xx, xy, yy]) and GGX (αx, αy, angle) (n, lobes, 3).
+type Lobes = (Vec<Vec<Vec<f64>>>, Vec<Vec<[f64; 3]>>, Vec<Vec<[f64; 3]>>);
 
-/// Belcour 2018 lobes for viewing cosines `cos_theta`: energies (n, lobes, channels) and GGX roughnesses (n, lobes).
+/// Belcour 2018 / Yamaguchi 2019 lobes for unit viewing directions `wo` (rows, z > 0): energies and covariances.
 #[pyfunction]
-fn belcour_lobes(layers: &Bound<'_, PyList>, ext_ior: f64, cos_theta: Vec<f64>) -> PyResult<Lobes> {
+fn belcour_lobes(layers: &Bound<'_, PyList>, ext_ior: f64, wo: Vec<[f64; 3]>) -> PyResult<Lobes> {
     let stack = parse_stack(layers, ext_ior)?;
     // Lobes come straight from the adding-doubling: no evaluation table is needed.
     let p = models::belcour::prepare(&stack, &Options { belcour_table: false, ..Options::default() })?;
-    if let Some(c) = cos_theta.iter().find(|c| !(c.is_finite() && **c > 0.0 && **c <= 1.0)) {
-        return Err(PyValueError::new_err(format!(
-            "wi must point above the surface (cos θ in (0, 1]), got cos θ = {c}"
-        )));
+    if let Some(w) = wo.iter().find(|w| !(w.iter().all(|x| x.is_finite()) && w[2] > 0.0)) {
+        return Err(PyValueError::new_err(format!("wi must point above the surface (z > 0), got {w:?}")));
     }
-    let lobes: Vec<_> = cos_theta.iter().map(|&c| p.lobes(c)).collect();
+    let lobes: Vec<_> = wo.iter().map(|w| p.lobes(DVec3::from_array(*w).normalize())).collect();
     Ok((
-        lobes.iter().map(|l| l.iter().map(|(e, _)| e.clone()).collect()).collect(),
-        lobes.iter().map(|l| l.iter().map(|(_, a)| *a).collect()).collect(),
+        lobes.iter().map(|l| l.iter().map(|lobe| lobe.energy.clone()).collect()).collect(),
+        lobes.iter().map(|l| l.iter().map(|lobe| [lobe.cov.xx, lobe.cov.xy, lobe.cov.yy]).collect()).collect(),
+        lobes.iter().map(|l| l.iter().map(|lobe| lobe.roughness().into()).collect()).collect(),
     ))
 }
 

@@ -37,6 +37,7 @@ def test_single_interface_is_one_lobe_of_its_roughness():
     stack = lamina.Stack([lamina.Conductor((0.2, 0.45, 1.4), (3.6, 2.5, 1.9), 0.3)])
     lobes = stack.lobes(np.array([[0.3, 0.0, 0.95], [0.8, 0.0, 0.6]]))
     assert lobes["energy"].shape == (2, 1, 3) and np.allclose(lobes["roughness"], 0.3)
+    assert lobes["covariance"].shape == (2, 1, 2, 2) and np.all(lobes["angle"] == 0)
     # Its energy is the FGD table: the directional albedo of the same lobe with the exact Fresnel (table error 2e-3).
     cos = np.array([0.95, 0.6]) / np.linalg.norm([[0.3, 0, 0.95], [0.8, 0, 0.6]], axis=-1)
     wi = np.stack([np.sqrt(1 - cos**2), 0 * cos, cos], -1)
@@ -89,7 +90,7 @@ def test_view_albedo_at_most_one(stack, theta):
     w = (np.cos(T) * np.sin(T))[..., None] * (np.pi / 2 / nt) * (2 * np.pi / npp)
     view_albedo = np.sum(stack.eval(wi, wo, "belcour") * w, axis=(0, 1))
     lobes = stack.lobes(wo)
-    delta = lobes["energy"][0] if lobes["roughness"][0] == 0 else 0.0
+    delta = lobes["energy"][0] if np.all(lobes["roughness"][0] == 0) else 0.0
     assert np.all(view_albedo + delta <= 1 + 1e-3), (view_albedo, delta)
 
 
@@ -105,16 +106,93 @@ def test_variant_options():
             stack.eval(wi, wo, "belcour", **kw)
 
 
-def test_anisotropic_stacks_are_rejected_with_a_clear_error():
-    with pytest.raises(ValueError, match="isotropic"):
-        lamina.materials.suite("anisotropic-coat-metal").eval([0, 0, 1.0], [0, 0, 1.0], "belcour")
+def aniso_pairs(rng, n):
+    return random_hemisphere(rng, n, 0.01), random_hemisphere(rng, n, 0.01)
+
+
+def test_isotropic_covariances_are_scalar_and_frame_free(rng):
+    """Yamaguchi's covariance transport on an isotropic stack: every Σ = σI, lobes without orientation, and the
+    tangent angles of the layers do not matter (the scalar model)."""
+    def stack(angle):
+        return lamina.Stack([lamina.Dielectric(1.3, 0.1, angle=angle), lamina.Dielectric(1.6, 0.25, angle=2 * angle),
+                             lamina.materials.metal("Cu", 0.2, angle=-angle)])
+    wo = random_hemisphere(rng, 50)
+    lobes = stack(0.0).lobes(wo)
+    cov = lobes["covariance"]
+    assert np.all(cov[..., 0, 1] == 0) and np.all(cov[..., 1, 0] == 0) and np.all(cov[..., 0, 0] == cov[..., 1, 1])
+    assert np.all(lobes["angle"] == 0) and np.all(lobes["roughness"][..., 0] == lobes["roughness"][..., 1])
+    wi = random_hemisphere(rng, 50)
+    for tab in (True, False):
+        np.testing.assert_array_equal(stack(0.7).eval(wi, wo, "belcour", tabulated=tab),
+                                      stack(0.0).eval(wi, wo, "belcour", tabulated=tab))
+
+
+def test_single_anisotropic_interface_is_one_lobe_of_its_roughness_and_frame(rng):
+    stack = lamina.Stack([lamina.Conductor((0.2, 0.45, 1.4), (3.6, 2.5, 1.9), (0.1, 0.4), angle=0.5)])
+    lobes = stack.lobes(random_hemisphere(rng, 20))
+    np.testing.assert_allclose(lobes["roughness"][:, 0], np.tile([0.4, 0.1], (20, 1)), rtol=1e-9)
+    np.testing.assert_allclose(np.mod(lobes["angle"][:, 0] - 0.5 - np.pi / 2, np.pi), 0, atol=1e-9)
+    # f = E(wo) D(h) G2 / (4 cos θi cos θo): the lobe's energy times the microfacet shape of its roughness and frame.
+    wi, wo = aniso_pairs(rng, 200)
+    f = stack.eval(wi, wo, "belcour", tabulated=False)
+    h = wi + wo
+    h /= np.linalg.norm(h, axis=-1, keepdims=True)
+    shape = (lamina.optics.ndf(h, (0.1, 0.4), 0.5) * lamina.optics.masking_shadowing(wi, wo, h, (0.1, 0.4), 0.5)
+             / (4 * wi[:, 2] * wo[:, 2]))
+    np.testing.assert_allclose(f, stack.lobes(wo)["energy"][:, 0] * shape[:, None], rtol=1e-9)
+
+
+@pytest.mark.parametrize("tabulated", [False, True])
+def test_rotating_anisotropic_layers_and_directions_together_leaves_f_unchanged(tabulated, rng):
+    """Exact for the direct loop; the tabulated form interpolates over the viewing azimuth on nodes fixed in the
+    local frame (measured table-vs-loop difference below 0.6%): 1% there."""
+    def stack(turn):
+        return lamina.Stack([lamina.Dielectric(1.5, (0.1, 0.4), angle=0.5 + turn),
+                             lamina.materials.metal("Al", (0.35, 0.08), angle=-0.4 + turn)])
+    wi, wo = aniso_pairs(rng, 300)
+    c, s = np.cos(0.8), np.sin(0.8)
+    rot = np.array([[c, -s, 0], [s, c, 0], [0, 0, 1.0]])
+    a = stack(0.8).eval(wi @ rot.T, wo @ rot.T, "belcour", tabulated=tabulated)
+    b = stack(0.0).eval(wi, wo, "belcour", tabulated=tabulated)
+    np.testing.assert_allclose(a, b, rtol=1e-9 if not tabulated else 1e-2, atol=1e-12)
+
+
+@pytest.mark.parametrize("symmetric", [False, True])
+def test_anisotropic_table_matches_the_direct_loop(symmetric, rng):
+    """Anisotropic stacks tabulate over (√cos θ, azimuth) on 128 x 32 nodes. Measured over 50k random pairs of
+    anisotropic-coat-metal: max relative difference 0.55%, 99.9th percentile 0.35%. Asserted: 1% and 0.5%."""
+    stack = lamina.materials.suite("anisotropic-coat-metal")
+    wi, wo = aniso_pairs(rng, 50_000)
+    a = stack.eval(wi, wo, "belcour", symmetric=symmetric)
+    b = stack.eval(wi, wo, "belcour", symmetric=symmetric, tabulated=False)
+    big = b > 1e-3 * b.max()
+    rel = np.abs(a - b)[big] / b[big]
+    assert rel.max() <= 1e-2 and np.percentile(rel, 99.9) <= 5e-3, (rel.max(), np.percentile(rel, 99.9))
+
+
+anisotropic_stacks = st.builds(
+    lambda ior, ax, ay, angle, bx, by, bangle, k: lamina.Stack([
+        lamina.Dielectric(ior, (ax, ay), angle=angle), lamina.Conductor(0.3, k, (bx, by), angle=bangle)]),
+    st.floats(1.001, 2.5), st.floats(0.0, 1.0), st.floats(0.0, 1.0), st.floats(-3.2, 3.2), st.floats(0.0, 1.0),
+    st.floats(0.0, 1.0), st.floats(-3.2, 3.2), st.floats(0.0, 6.0),
+)
+
+
+@settings(max_examples=30, deadline=None)
+@given(anisotropic_stacks, st.floats(1e-6, 1.0), st.floats(1e-6, 1.0), st.floats(0.0, 6.3))
+def test_anisotropic_finite_non_negative(stack, zi, zo, phi):
+    wi = np.array([[np.sqrt(1 - zi * zi) * np.cos(phi), np.sqrt(1 - zi * zi) * np.sin(phi), zi], [0.0, 0.0, 1.0]])
+    wo = np.array([[-0.3, np.sqrt(max(0.0, 1 - 0.09 - zo * zo)), zo], [0.2, 0.1, 0.97]])
+    for tab in (True, False):
+        f = stack.eval(wi, wo, "belcour", tabulated=tab)
+        assert np.all(np.isfinite(f)) and np.all(f >= 0)
 
 
 # Measured with 20k reference paths per direction (seed 0) on the suite grid (5 θi x 30 wo): relative L1 error of
 # f over the outgoing grid, averaged over θi ∈ {0°, 30°, 60°}. Guards: measured + 0.05 (absolute).
 MEASURED_LOBE_ERROR = {
     "gold-clearcoat": 0.194, "frosted-metal": 0.472, "rough-coat-rough-copper": 0.119, "varnished-diffuse": 0.004,
-    "thick-absorbing-slab": 0.129, "three-layer": 0.224, "scattering-slab": 0.922,
+    "thick-absorbing-slab": 0.129, "three-layer": 0.224, "scattering-slab": 0.922, "anisotropic-coat-metal": 0.228,
 }
 
 

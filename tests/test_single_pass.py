@@ -11,7 +11,6 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 import lamina
-from lamina import _lamina
 from conftest import random_hemisphere
 
 SINGLE_PASS = ("steinberg", "weidlich_wilkie")
@@ -111,7 +110,7 @@ def test_steinberg_tables():
     error measured over every (μ, α, η) node (docs/validation.md; guard: measured + 0.01)."""
     mu = np.linspace(0.05, 1.0, 40)
     eta = np.full_like(mu, 1.5)
-    ts = _lamina.steinberg_lut(mu[:, None], np.zeros((40, 1)), eta[:, None], "tabulated")
+    ts = lamina.optics.steinberg_lut(mu, 0.0, eta, "tabulated")
     # Linear interpolation between the 64 μ nodes of the smooth case: 2e-3 (the Snell sine is steep near μ = 1).
     np.testing.assert_allclose(ts[:, 0], 1 - fresnel(mu, 1.5), atol=2e-3)
     np.testing.assert_allclose(ts[:, 1], np.sqrt(1 - mu**2) / 1.5, atol=2e-2)
@@ -130,8 +129,8 @@ def fit_error() -> dict:
     mu = np.maximum(np.linspace(0, 1, 64), 1e-3)
     alpha = np.linspace(0, 1, 32)
     eta = 0.25 * 16.0 ** np.linspace(0, 1, 48)
-    grid = [g[..., None] for g in np.meshgrid(mu, alpha, eta, indexing="ij")]
-    d = _lamina.steinberg_lut(*grid, "fitted") - _lamina.steinberg_lut(*grid, "tabulated")
+    grid = np.meshgrid(mu, alpha, eta, indexing="ij")
+    d = lamina.optics.steinberg_lut(*grid, "fitted") - lamina.optics.steinberg_lut(*grid, "tabulated")
     out = {}
     for label, sel in (("η≥1", eta >= 1), ("η<1", eta < 1)):
         for k, name in ((0, "t"), (1, "s")):
@@ -154,6 +153,14 @@ def test_car_paint_flakes():
     np.testing.assert_allclose(far, plain, rtol=1e-6)
     near = paint.eval(wi, wo, "weidlich_wilkie", flake_normal=flakes, distance=1.0)
     assert np.all(np.isfinite(near)) and not np.allclose(near, plain, rtol=1e-3)
+    # Strongly tilted flakes put directions below the flake's horizon: the base then returns nothing (no NaN, no
+    # reflection from underneath), precomputed tables included; only the coat's own lobe remains.
+    steep = np.array([5.0, 0.0, 0.0])
+    grazing = np.array([[-0.95, 0.0, 0.31]])
+    for kw in ({}, {"precomputed": True}):
+        coat_only = lamina.Stack([paint.layers[0], lamina.Diffuse(0.0)]).eval(wi, grazing, "weidlich_wilkie", **kw)
+        f = paint.eval(wi, grazing, "weidlich_wilkie", flake_normal=steep, distance=1.0, **kw)
+        np.testing.assert_allclose(f, coat_only, rtol=1e-12)
 
 
 def test_flake_generator_is_deterministic_with_the_stated_distribution(rng):
@@ -214,6 +221,16 @@ def test_bad_input_names_the_parameter():
         lamina.materials.Patina(tint=(2.0, 0.5, 0.5))
     with pytest.raises(ValueError, match="mask contains NaN"):
         lamina.materials.Patina().eval(w, w, np.nan)
+    with pytest.raises(ValueError, match="precomputed"):
+        lamina.materials.Patina().eval(w, w, 0.5, precomputed=True)
+    with pytest.raises(ValueError, match="point above the surface"):
+        stack.eval(w, w, "weidlich_wilkie", flake_normal=[0.0, 0.0, -3.0], distance=1.0)
+    with pytest.raises(ValueError, match="flake_normal"):
+        stack.eval(w, w, "reference", flake_normal=w, distance=1.0)
+    with pytest.raises(ValueError, match="eta must be in"):
+        lamina.optics.steinberg_lut(0.5, 0.2, 0.0)
+    with pytest.raises(ValueError, match="seed"):
+        lamina.materials.flake_normals(np.zeros(2), seed=-1)
 
 
 def unit_rows(w):

@@ -142,12 +142,17 @@ class Stack:
           'frozen' (code) | 'real' (paper), `jacobian` 'j12' (code) | 'j21' (paper), `energy` 'fgd' | 'fresnel';
           `tabulated` (default True) interpolates the adding-doubling from a per-call table over cos θ.
         - "steinberg": `lut` 'tabulated' (default) | 'fitted' (the article's closed forms).
-        - "weidlich_wilkie": `precomputed` (Elek's Fresnel and Beckmann tables), `clamp_roughness` (m₂ ≥ m₁);
-          car paint: `flake_normal` (..., 3) flake vectors and `distance` (...) viewing distances, broadcast with
-          the directions; the base is evaluated about normalize(flake + max(distance, 1) ẑ).
+        - "steinberg" and "weidlich_wilkie": `clamp_roughness` (Elek's m₂ ≥ m₁, default True) and `eta2` (the
+          radiance compression 1/η² through each coat, lamina's addition, default True); set both False for the
+          published forms.
+        - "weidlich_wilkie": `precomputed` (Elek's Fresnel and Beckmann tables); car paint: `flake_normal`
+          (..., 3) flake vectors and `distance` (...) viewing distances, broadcast with the directions; the base is
+          evaluated about normalize(flake + max(distance, 1) ẑ), which must point above the surface.
         Measured against the reference in docs/validation.md. model="reference" returns the mean of
         `Stack.reference` with `samples` paths per pair (exact Fresnel; `distribution` and `g2` apply)."""
         if model == "reference":
+            if flake_normal is not None or distance is not None:
+                raise ValueError("flake_normal: flakes are a feature of model 'weidlich_wilkie', got model 'reference'")
             unknown = set(options) - {"distribution", "g2"}
             if unknown:
                 raise TypeError(f"model 'reference' takes the options distribution and g2, got {sorted(unknown)}")
@@ -159,6 +164,10 @@ class Stack:
             wi, wo = broadcast(wi=(wi, 3), wo=(wo, 3))
             return _lamina.eval_stack(self._resolve(wl), self.ext_ior, model, wi, wo, options)
         wi, wo, fl, d = broadcast(wi=(wi, 3), wo=(wo, 3), flake_normal=(flake_normal, 3), distance=(distance, 0))
+        with np.errstate(invalid="ignore"):
+            below = fl[..., 2] + np.maximum(d[..., 0], 1.0) <= 0
+        if np.any(below):
+            raise ValueError("flake_normal: flake + max(distance, 1) ẑ must point above the surface (z > 0)")
         return _lamina.eval_stack(self._resolve(wl), self.ext_ior, model, wi, wo, options, fl, d)
 
     def reference(self, wi, wo, *, wavelengths=None, samples: int = 100_000, seed: int = 0, progress=None,
@@ -176,18 +185,22 @@ class Stack:
         return mean.reshape(shape), err.reshape(shape)
 
     def lobes(self, wi, model: str = "belcour", *, wavelengths=None) -> dict:
-        """The lobes a statistical model builds for viewing direction(s) wi (..., 3): {"energy": (..., L, channels),
-        "roughness": (..., L)}, one GGX lobe per interface (L = interfaces down to the first opaque one); all lobes
-        are centred on the mirror direction. Only model="belcour" (isotropic) has lobes in this version."""
+        """The lobes a statistical model builds for viewing direction(s) wi (..., 3), one GGX lobe per interface
+        (L = interfaces down to the first opaque one), all centred on the mirror direction:
+        {"energy": (..., L, channels), "covariance": (..., L, 2, 2) in the local tangent frame (Yamaguchi et al.
+        2019; σI for isotropic stacks), "roughness": (..., L, 2) the GGX (alpha_x, alpha_y) along the covariance's
+        eigenvectors, "angle": (..., L) the tangent angle (radians) of the alpha_x axis}. A lobe of roughness 0 is a
+        specular (Dirac) reflection. Only model="belcour" has lobes."""
         if model != "belcour":
             raise ValueError(f"model must be 'belcour' for lobes, got {model!r}")
         wl = _wavelengths(wavelengths)
         (wi,) = broadcast(wi=(wi, 3))
         rows = _unit_rows("wi", wi)
-        energy, roughness = _lamina.belcour_lobes(self._resolve(wl), self.ext_ior, rows[:, 2].tolist())
-        energy, roughness = np.asarray(energy), np.asarray(roughness)
-        return {"energy": energy.reshape(wi.shape[:-1] + energy.shape[1:]),
-                "roughness": roughness.reshape(wi.shape[:-1] + roughness.shape[1:])}
+        lead = wi.shape[:-1]
+        energy, cov, rough = (np.asarray(a, dtype=np.float64).reshape(lead + np.shape(a)[1:])
+                              for a in _lamina.belcour_lobes(self._resolve(wl), self.ext_ior, rows.tolist()))
+        sigma = np.stack([cov[..., 0], cov[..., 1], cov[..., 1], cov[..., 2]], -1).reshape(cov.shape[:-1] + (2, 2))
+        return {"energy": energy, "covariance": sigma, "roughness": rough[..., :2], "angle": rough[..., 2]}
 
     def albedo(self, wi, model: str = "microfacet", *, wavelengths=None, samples: int = 100_000, seed: int = 0,
                progress=None, **model_options):

@@ -94,6 +94,8 @@ def flake_normals(uv, density: float = 200.0, spread: float = 0.5, seed: int = 0
         raise ValueError(f"density must be in (0, inf), got {density}")
     if not (0 <= spread <= 10):
         raise ValueError(f"spread must be in [0, 10], got {spread}")
+    if not (isinstance(seed, (int, np.integer)) and 0 <= seed < 2**64):
+        raise ValueError(f"seed must be an integer in [0, 2**64), got {seed!r}")
     cell = np.floor(uv * density).astype(np.int64).view(np.uint64)
 
     def mix(x):
@@ -121,7 +123,8 @@ class Patina:
     extent + transition, mask); f = (1 − w) f_bare + w f_patina, the patina layer's roughness and IOR going from the
     bare copper surface's (no layer) to the patina's with w, and the copper under it tarnished by lerp(1, tint, w).
     The cuprite absorbs σa = 4πκ/λ (Elek's RGB κ) and scatters `scattering` per µm, which gives the diffuse patina
-    term T₁₂ T₂₁ (1 − a) σs/(σa + σs) / π: the light the layer does not transmit, a its transmittance."""
+    term T₁₂ T₂₁ (1 − a) σs/(σa + σs) / (π η²): the light the layer does not transmit, a its transmittance (1/η²
+    with the default `eta2`)."""
 
     def __init__(self, extent: float = 0.5, transition: float = 0.1, thickness: float = 0.5,
                  roughness: Roughness = 0.35, scattering: float = 2.0, copper_roughness: Roughness = 0.15,

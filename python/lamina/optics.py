@@ -124,3 +124,15 @@ def jacobian_refract(theta_i, eta, xh=0.0, yh=0.0, exact: bool = True) -> np.nda
     """J_t = ∂(xt, yt)/∂(xh, yh), (..., 2, 2), for refraction with relative IOR eta. exact=False: Belcour's first
     order ((cos θi − η cos θt)/η) I. ValueError under total internal reflection."""
     return _jacobian(theta_i, xh, yh, eta, exact)
+
+
+def steinberg_lut(mu, alpha, eta, lut: str = "tabulated") -> np.ndarray:
+    """Steinberg's tables for one GGX dielectric interface seen from above at cosine `mu` ((0, 1]), roughness `alpha`
+    ([0, 1]) and relative IOR `eta` ([0.25, 4], below / above): (..., 2) with t, the mean Fresnel transmission over
+    the visible microfacets, and s, the sine of the mean refracted direction. `lut` 'tabulated' | 'fitted'."""
+    mu, alpha, eta = broadcast(mu=(mu, 0), alpha=(alpha, 0), eta=(eta, 0))
+    for name, x, lo, hi, lo_open in (("mu", mu, 0.0, 1.0, True), ("alpha", alpha, 0.0, 1.0, False),
+                                     ("eta", eta, 0.25, 4.0, False)):
+        if not np.all(np.isfinite(x)) or np.any(x > hi) or np.any(x <= lo if lo_open else x < lo):
+            raise ValueError(f"{name} must be in {'(' if lo_open else '['}{lo}, {hi}]")
+    return _lamina.steinberg_lut(mu, alpha, eta, lut)

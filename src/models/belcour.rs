@@ -1,7 +1,16 @@
 //! `model="belcour"`: Belcour 2018, "Efficient rendering of layered materials using an atomic decomposition with
 //! statistical operators" — per-lobe energy, mean (as a cosine) and variance (in the projected disc, through the
 //! roughness map h) carried through the stack by adding-doubling, in the form of the published reference loop;
-//! one GGX lobe per interface, all centred on the mirror direction. Isotropic layers only in this version.
+//! one GGX lobe per interface, all centred on the mirror direction.
+//!
+//! Anisotropy (Yamaguchi et al. 2019): every variance is a symmetric 2x2 covariance Σ in the projected disc,
+//! expressed in the stack's local tangent frame; an interface of roughness (αx, αy) whose tangent frame is rotated by
+//! `angle` contributes Σ = R(angle) diag(h(αx), h(αy)) R(angle)ᵀ, and the adding-doubling combines covariances with
+//! the same (scalar) energy weights and first-order Jacobians as the scalar model. Each output lobe is eigen-
+//! decomposed into an anisotropic GGX lobe: α along the eigenvectors, its tangent angle that of the first one. FGD is
+//! looked up at the roughness the lobe has along the viewing azimuth. An isotropic stack keeps every Σ = σI, which
+//! reproduces the scalar model (to rounding). The Jacobians stay the scalar first-order ones (J ∝ I); the
+//! hemispherical reflectance R̄↑ seen by a diffuse base is computed at azimuth 0.
 //!
 //! Statistics are computed for the viewing direction wo (or for |wo·h| with `symmetric`, Belcour §6, which makes
 //! the BRDF reciprocal). Slabs are medium steps (Beer–Lambert absorption and forward Henyey–Greenstein scattering,
@@ -37,6 +46,91 @@ pub fn hg_variance(g: f64) -> f64 {
     ((1.0 - g) / g).powf(0.8) / (1.0 + g)
 }
 
+/// A symmetric 2x2 covariance of directions projected on the tangent plane (Yamaguchi et al. 2019 §4), in the local
+/// tangent frame.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Cov {
+    pub xx: f64,
+    pub xy: f64,
+    pub yy: f64,
+}
+
+impl Cov {
+    pub const ZERO: Cov = Cov { xx: 0.0, xy: 0.0, yy: 0.0 };
+
+    pub fn iso(v: f64) -> Cov {
+        Cov { xx: v, xy: 0.0, yy: v }
+    }
+
+    /// R diag(vx, vy) Rᵀ with R the rotation by `angle` (Yamaguchi et al. 2019 eq. 7).
+    pub fn oriented(vx: f64, vy: f64, angle: f64) -> Cov {
+        if vx == vy {
+            return Cov::iso(vx);
+        }
+        let (s, c) = angle.sin_cos();
+        Cov { xx: c * c * vx + s * s * vy, xy: c * s * (vx - vy), yy: s * s * vx + c * c * vy }
+    }
+
+    /// The variance along the unit tangent direction (cos φ, sin φ).
+    pub fn along(self, cos_phi: f64, sin_phi: f64) -> f64 {
+        cos_phi * cos_phi * self.xx + 2.0 * cos_phi * sin_phi * self.xy + sin_phi * sin_phi * self.yy
+    }
+
+    /// Eigen-decomposition: (λ₁, λ₂, angle of λ₁'s eigenvector); (v, v, 0) for an isotropic Σ = vI.
+    pub fn eigen(self) -> (f64, f64, f64) {
+        let mean = 0.5 * (self.xx + self.yy);
+        let half = 0.5 * (self.xx - self.yy);
+        if self.xy == 0.0 && half == 0.0 {
+            return (mean, mean, 0.0);
+        }
+        let r = half.hypot(self.xy);
+        (mean + r, mean - r, 0.5 * self.xy.atan2(half))
+    }
+}
+
+impl std::ops::Add for Cov {
+    type Output = Cov;
+    fn add(self, o: Cov) -> Cov {
+        Cov { xx: self.xx + o.xx, xy: self.xy + o.xy, yy: self.yy + o.yy }
+    }
+}
+
+impl std::ops::Mul<Cov> for f64 {
+    type Output = Cov;
+    fn mul(self, c: Cov) -> Cov {
+        Cov { xx: self * c.xx, xy: self * c.xy, yy: self * c.yy }
+    }
+}
+
+impl std::ops::Mul<f64> for Cov {
+    type Output = Cov;
+    fn mul(self, d: f64) -> Cov {
+        Cov { xx: self.xx * d, xy: self.xy * d, yy: self.yy * d }
+    }
+}
+
+impl std::ops::Div<f64> for Cov {
+    type Output = Cov;
+    fn div(self, d: f64) -> Cov {
+        Cov { xx: self.xx / d, xy: self.xy / d, yy: self.yy / d }
+    }
+}
+
+/// One output lobe: energy per channel and its anisotropic GGX roughness and tangent angle.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Lobe {
+    pub energy: Vec<f64>,
+    pub cov: Cov,
+}
+
+impl Lobe {
+    /// (αx, αy, angle) of the lobe's GGX distribution.
+    pub fn roughness(&self) -> (f64, f64, f64) {
+        let (l1, l2, angle) = self.cov.eigen();
+        (alpha_from_variance(l1), alpha_from_variance(l2), angle)
+    }
+}
+
 /// Where Belcour's paper and reference code disagree, each choice is an option, measured against the reference
 /// evaluator in docs/validation.md. Defaults: the reference code.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -50,8 +144,9 @@ pub struct Variant {
 }
 
 enum Step {
-    /// A rough interface: relative IOR per channel (below / above), κ per channel (conductors), roughness.
-    Interface { eta: Vec<f64>, kappa: Vec<f64>, alpha: f64, conductor: bool },
+    /// A rough interface: relative IOR per channel (below / above), κ per channel (conductors), roughness
+    /// (αx, αy) along its tangent frame rotated by `angle`.
+    Interface { eta: Vec<f64>, kappa: Vec<f64>, alpha: (f64, f64), angle: f64, conductor: bool },
     /// A slab: thickness and coefficients per channel.
     Medium { thickness: f64, sigma_a: Vec<f64>, sigma_s: Vec<f64>, g: f64 },
 }
@@ -66,21 +161,28 @@ struct DiffuseBase {
 /// Everything the adding-doubling produces, tabulated over the cosine it is run for, at nodes uniform in √cos θ
 /// (denser at grazing angles, where a smooth top's Fresnel term rises steeply): evaluation interpolates linearly
 /// instead of re-running the loop. The interpolation error is measured and asserted in tests/test_belcour.py.
+/// Anisotropic stacks add the viewing azimuth φ as a second axis (the statistics have period π in φ): 128 cosine
+/// nodes x 32 azimuths, bilinear.
 const TABLE_NODES: usize = 512;
+const ANISO_NODES: usize = 128;
+const ANISO_AZIMUTHS: usize = 32;
 
 struct LobeTable {
     lobes: usize,
-    /// [node][lobe][channel]
+    nodes: usize,
+    azimuths: usize,
+    /// [node][azimuth][lobe][channel]
     energy: Vec<f64>,
-    /// [node][lobe]
-    alpha: Vec<f64>,
-    /// [node][channel]: energy transmitted down to the base (T0i) and up from it (Ti0).
+    /// [node][azimuth][lobe]
+    cov: Vec<Cov>,
+    /// [node][azimuth][channel]: energy transmitted down to the base (T0i) and up from it (Ti0).
     t_down: Vec<f64>,
     t_up: Vec<f64>,
 }
 
 pub struct Prepared {
     steps: Vec<Step>,
+    anisotropic: bool,
     diffuse: Option<DiffuseBase>,
     table: Option<LobeTable>,
     g2: G2Form,
@@ -93,26 +195,18 @@ pub fn prepare(stack: &Stack, opts: &Options) -> Result<Prepared> {
     let mut steps = Vec::new();
     let mut diffuse = None;
     let mut above = vec![stack.ext_ior; stack.channels];
-    for (i, layer) in stack.layers.iter().enumerate() {
-        let alpha = match layer {
-            Layer::Dielectric { alpha, .. } | Layer::Conductor { alpha, .. } => {
-                if alpha.0 != alpha.1 {
-                    return value_error(format!(
-                        "layer {i}: model 'belcour' is isotropic; anisotropic roughness {alpha:?} needs the \
-                         Yamaguchi 2019 extension (not implemented yet)"
-                    ));
-                }
-                alpha.0
-            }
+    for layer in &stack.layers {
+        let (alpha, angle) = match layer {
+            Layer::Dielectric { alpha, angle, .. } | Layer::Conductor { alpha, angle, .. } => (*alpha, *angle),
             Layer::Diffuse { roughness, .. } if *roughness > 0.0 => {
                 return value_error("model 'belcour' takes a Lambertian diffuse base (roughness 0)");
             }
-            Layer::Diffuse { .. } => 0.0,
+            Layer::Diffuse { .. } => ((0.0, 0.0), 0.0),
         };
         match layer {
             Layer::Dielectric { ior, thickness, sigma_a, sigma_s, g, .. } => {
                 let eta = ior.iter().zip(&above).map(|(n, a)| n / a).collect();
-                steps.push(Step::Interface { eta, kappa: vec![0.0; stack.channels], alpha, conductor: false });
+                steps.push(Step::Interface { eta, kappa: vec![0.0; stack.channels], alpha, angle, conductor: false });
                 if *thickness > 0.0 && sigma_a.iter().chain(sigma_s).any(|&s| s > 0.0) {
                     steps.push(Step::Medium {
                         thickness: *thickness,
@@ -126,7 +220,7 @@ pub fn prepare(stack: &Stack, opts: &Options) -> Result<Prepared> {
             Layer::Conductor { ior, k, .. } => {
                 let eta = ior.iter().zip(&above).map(|(n, a)| n / a).collect();
                 let kappa = k.iter().zip(&above).map(|(k, a)| k / a).collect();
-                steps.push(Step::Interface { eta, kappa, alpha, conductor: true });
+                steps.push(Step::Interface { eta, kappa, alpha, angle, conductor: true });
             }
             Layer::Diffuse { albedo, .. } => {
                 let eta = above.iter().sum::<f64>() / above.len() as f64 / stack.ext_ior;
@@ -134,8 +228,10 @@ pub fn prepare(stack: &Stack, opts: &Options) -> Result<Prepared> {
             }
         }
     }
+    let anisotropic = steps.iter().any(|s| matches!(s, Step::Interface { alpha, .. } if alpha.0 != alpha.1));
     let mut p = Prepared {
         steps,
+        anisotropic,
         diffuse: None,
         table: None,
         g2: opts.g2,
@@ -163,32 +259,32 @@ struct State {
     t0i: Vec<f64>,
     ri0: Vec<f64>,
     ti0: Vec<f64>,
-    s_r0i: f64,
-    s_t0i: f64,
-    s_ri0: f64,
-    s_ti0: f64,
+    s_r0i: Cov,
+    s_t0i: Cov,
+    s_ri0: Cov,
+    s_ti0: Cov,
     j0i: f64,
     ji0: f64,
 }
 
-/// The statistics of one step: energies per channel, scalar variances and Jacobians.
+/// The statistics of one step: energies per channel, covariances and (first-order, scalar) Jacobians.
 struct StepStats {
     r12: Vec<f64>,
     t12: Vec<f64>,
     r21: Vec<f64>,
     t21: Vec<f64>,
-    s_r12: f64,
-    s_t12: f64,
-    s_r21: f64,
-    s_t21: f64,
+    s_r12: Cov,
+    s_t12: Cov,
+    s_r21: Cov,
+    s_t21: Cov,
     j12: f64,
     j21: f64,
 }
 
 impl State {
-    /// Adds one step below the stack (adding-doubling on energies and variances); returns the energy and
-    /// roughness of the lobe reflected by this step.
-    fn add(&mut self, st: &StepStats, j21_in_variance: bool) -> (Vec<f64>, f64) {
+    /// Adds one step below the stack (adding-doubling on energies and covariances); returns the lobe reflected by
+    /// this step.
+    fn add(&mut self, st: &StepStats, j21_in_variance: bool) -> Lobe {
         let c = self.r0i.len();
         let denom: Vec<f64> = (0..c).map(|k| 1.0 - self.ri0[k] * st.r12[k]).collect();
         let ok = mean(&denom) > 0.0;
@@ -204,16 +300,20 @@ impl State {
             (mean(&self.r0i), mean(&e_r0i), mean(&e_ri0), mean(&m_r0i), mean(&m_ri0), mean(&m_rr), mean(&st.r21));
         let below = self.s_t0i + st.s_r12 + mrr * (st.s_r12 + self.s_ri0);
         let lobe_variance = self.s_ti0 + self.j0i * below;
-        let s_r0i = if er0i > 0.0 { (r0i * self.s_r0i + mr0i * lobe_variance) / er0i } else { 0.0 };
+        let s_r0i = if er0i > 0.0 { (r0i * self.s_r0i + mr0i * lobe_variance) / er0i } else { Cov::ZERO };
         let j = if j21_in_variance { st.j21 } else { st.j12 };
         let s_t0i = j * self.s_t0i + st.s_t12 + j * (st.s_r12 + self.s_ri0) * mrr;
         let s_ri0 = if eri0 > 0.0 {
             (r21 * st.s_r21 + mri0 * (st.s_t12 + j * (st.s_t21 + self.s_ri0 + mrr * (st.s_r12 + self.s_ri0)))) / eri0
         } else {
-            0.0
+            Cov::ZERO
         };
         let s_ti0 = self.ji0 * st.s_t21 + self.s_ti0 + self.ji0 * (st.s_r12 + self.s_ri0) * mrr;
-        let lobe = if mr0i > 0.0 { (m_r0i, alpha_from_variance(lobe_variance)) } else { (vec![0.0; c], 0.0) };
+        let lobe = if mr0i > 0.0 {
+            Lobe { energy: m_r0i, cov: lobe_variance }
+        } else {
+            Lobe { energy: vec![0.0; c], cov: Cov::ZERO }
+        };
         (self.r0i, self.t0i, self.ri0, self.ti0) = (e_r0i, e_t0i, e_ri0, e_ti0);
         (self.s_r0i, self.s_t0i, self.s_ri0, self.s_ti0) = (s_r0i, s_t0i, s_ri0, s_ti0);
         self.j0i *= st.j12;
@@ -245,7 +345,7 @@ impl Prepared {
         let half = 0.5 * (1.0 - mu_o_min);
         for (x, w) in crate::optics::fresnel::gauss_legendre(16) {
             let mu_o = mu_o_min + half * (1.0 + x);
-            let (_, state) = self.adding(mu_o);
+            let (_, state) = self.adding(mu_o, 1.0, 0.0);
             for (rk, ri0) in r.iter_mut().zip(&state.ri0) {
                 *rk += w * half * 2.0 * mu_o * ri0 / (eta * eta);
             }
@@ -255,20 +355,28 @@ impl Prepared {
 
     fn tabulate(&self) -> LobeTable {
         let c = self.channels;
-        let runs: Vec<_> =
-            (0..TABLE_NODES).map(|k| self.adding((k as f64 / (TABLE_NODES - 1) as f64).powi(2))).collect();
+        let (nodes, azimuths) = if self.anisotropic { (ANISO_NODES, ANISO_AZIMUTHS) } else { (TABLE_NODES, 1) };
+        let runs: Vec<_> = (0..nodes * azimuths)
+            .map(|k| {
+                let mu = ((k / azimuths) as f64 / (nodes - 1) as f64).powi(2);
+                let (sin, cos) = (std::f64::consts::PI * (k % azimuths) as f64 / azimuths as f64).sin_cos();
+                self.adding(mu, cos, sin)
+            })
+            .collect();
         let lobes = runs.iter().map(|(l, _)| l.len()).max().unwrap_or(0);
         let mut t = LobeTable {
             lobes,
-            energy: vec![0.0; TABLE_NODES * lobes * c],
-            alpha: vec![0.0; TABLE_NODES * lobes],
-            t_down: Vec::with_capacity(TABLE_NODES * c),
-            t_up: Vec::with_capacity(TABLE_NODES * c),
+            nodes,
+            azimuths,
+            energy: vec![0.0; runs.len() * lobes * c],
+            cov: vec![Cov::ZERO; runs.len() * lobes],
+            t_down: Vec::with_capacity(runs.len() * c),
+            t_up: Vec::with_capacity(runs.len() * c),
         };
         for (k, (l, state)) in runs.iter().enumerate() {
-            for (j, (e, a)) in l.iter().enumerate() {
-                t.energy[(k * lobes + j) * c..(k * lobes + j + 1) * c].copy_from_slice(e);
-                t.alpha[k * lobes + j] = *a;
+            for (j, lobe) in l.iter().enumerate() {
+                t.energy[(k * lobes + j) * c..(k * lobes + j + 1) * c].copy_from_slice(&lobe.energy);
+                t.cov[k * lobes + j] = lobe.cov;
             }
             t.t_down.extend_from_slice(&state.t0i);
             t.t_up.extend_from_slice(&state.ti0);
@@ -276,13 +384,15 @@ impl Prepared {
         t
     }
 
-    /// The lobes (energy per channel, GGX roughness) for a viewing cosine `cos_theta`.
-    pub fn lobes(&self, cos_theta: f64) -> Vec<(Vec<f64>, f64)> {
-        self.adding(cos_theta).0
+    /// The lobes for a viewing direction `wo` (unit, above the surface).
+    pub fn lobes(&self, wo: DVec3) -> Vec<Lobe> {
+        let (cos_phi, sin_phi) = azimuth(wo);
+        self.adding(wo.z, cos_phi, sin_phi).0
     }
 
-    /// Runs the adding-doubling from the top for cosine `cos_theta`: the lobes and the final stack statistics.
-    fn adding(&self, cos_theta: f64) -> (Vec<(Vec<f64>, f64)>, State) {
+    /// Runs the adding-doubling from the top for a viewing direction of cosine `cos_theta` and azimuth
+    /// (`cos_phi`, `sin_phi`): the lobes and the final stack statistics.
+    fn adding(&self, cos_theta: f64, cos_phi: f64, sin_phi: f64) -> (Vec<Lobe>, State) {
         let c = self.channels;
         let fgd = tables::fgd();
         let mut s = State {
@@ -290,10 +400,10 @@ impl Prepared {
             t0i: vec![1.0; c],
             ri0: vec![0.0; c],
             ti0: vec![1.0; c],
-            s_r0i: 0.0,
-            s_t0i: 0.0,
-            s_ri0: 0.0,
-            s_ti0: 0.0,
+            s_r0i: Cov::ZERO,
+            s_t0i: Cov::ZERO,
+            s_ri0: Cov::ZERO,
+            s_ti0: Cov::ZERO,
             j0i: 1.0,
             ji0: 1.0,
         };
@@ -301,27 +411,32 @@ impl Prepared {
         let mut lobes = Vec::new();
         for step in &self.steps {
             match step {
-                Step::Interface { eta, kappa, alpha, conductor } => {
+                Step::Interface { eta, kappa, alpha: (ax, ay), angle, conductor } => {
                     let n12 = mean(eta);
                     let stt = (1.0 - cti * cti).max(0.0).sqrt() / n12;
                     let ctt = if stt <= 1.0 { (1.0 - stt * stt).sqrt() } else { -1.0 };
                     let transmissive = ctt > 0.0 && !conductor;
-                    let s_r12 = variance_from_alpha(*alpha);
+                    // Each axis of the interface's covariance through the roughness map h.
+                    let cov = |scale: f64| {
+                        Cov::oriented(variance_from_alpha(ax * scale), variance_from_alpha(ay * scale), *angle)
+                    };
+                    let s_r12 = cov(1.0);
                     // Transmission roughness scale s = |η cos θt − cos θi| / (2η cos θt) (and its reverse), with the
                     // cosines frozen to 1 as in the reference code, or real as in the paper.
                     let (ci, ct) = if self.variant.real_cosines { (cti, ctt) } else { (1.0, 1.0) };
                     let (s_t12, s_t21, j12, j21) = if transmissive {
                         (
-                            variance_from_alpha(alpha * 0.5 * (ct * n12 - ci).abs() / (ct * n12)),
-                            variance_from_alpha(alpha * 0.5 * (ci / n12 - ct).abs() / (ci / n12)),
+                            cov(0.5 * (ct * n12 - ci).abs() / (ct * n12)),
+                            cov(0.5 * (ci / n12 - ct).abs() / (ci / n12)),
                             ctt / cti * n12,
                             cti / ctt / n12,
                         )
                     } else {
-                        (0.0, 0.0, 1.0, 1.0)
+                        (Cov::ZERO, Cov::ZERO, 1.0, 1.0)
                     };
-                    // FGD at the roughness of the incoming lobe convolved with the interface.
-                    let temp_alpha = alpha_from_variance(s.s_t0i + s_r12);
+                    // FGD at the roughness, along the viewing azimuth, of the incoming lobe convolved with the
+                    // interface.
+                    let temp_alpha = alpha_from_variance((s.s_t0i + s_r12).along(cos_phi, sin_phi));
                     let r12: Vec<f64> = (0..c)
                         .map(|k| {
                             if temp_alpha == 0.0 || self.variant.fresnel_energy {
@@ -350,16 +465,16 @@ impl Prepared {
                                 * (-(thickness / cti) * (sigma_a[k] + sigma_s[k])).exp()
                         })
                         .collect();
-                    let s_t = if mean(sigma_s) > 0.0 { hg_variance(*g) } else { 0.0 };
+                    let s_t = if mean(sigma_s) > 0.0 { Cov::iso(hg_variance(*g)) } else { Cov::ZERO };
                     let zero = vec![0.0; c];
                     let st = StepStats {
                         r12: zero.clone(),
                         t12: t.clone(),
                         r21: zero,
                         t21: t,
-                        s_r12: 0.0,
+                        s_r12: Cov::ZERO,
                         s_t12: s_t,
-                        s_r21: 0.0,
+                        s_r21: Cov::ZERO,
                         s_t21: s_t,
                         j12: 1.0,
                         j21: 1.0,
@@ -378,28 +493,31 @@ impl Prepared {
         }
         let h = (wi + wo).normalize();
         let cos_theta = if self.symmetric { wo.dot(h).abs() } else { wo.z };
+        let (cos_phi, sin_phi) = azimuth(wo);
         if let Some(t) = &self.table {
             return self.eval_tabulated(t, wi, wo, h, cos_theta, out);
         }
-        let (lobes, view) = self.adding(cos_theta);
-        for (coeff, alpha) in &lobes {
-            self.add_lobe(*alpha, |ch| coeff[ch], wi, wo, h, out);
+        let (lobes, view) = self.adding(cos_theta, cos_phi, sin_phi);
+        for lobe in &lobes {
+            self.add_lobe(lobe.cov, |ch| lobe.energy[ch], wi, wo, h, out);
         }
         if self.diffuse.is_some() {
             // T↓ at θi and T↑ at θo (not at |wo·h|): symmetric under exchange, since T0i = Ti0 in this model.
-            let light = self.adding(wi.z).1;
-            let view = if self.symmetric { self.adding(wo.z).1 } else { view };
+            let (ci, si) = azimuth(wi);
+            let light = self.adding(wi.z, ci, si).1;
+            let view = if self.symmetric { self.adding(wo.z, cos_phi, sin_phi).1 } else { view };
             self.add_diffuse(|ch| light.t0i[ch], |ch| view.ti0[ch], out);
         }
     }
 
-    /// Adds one GGX lobe of roughness `alpha` with per-channel `energy`; a lobe of roughness 0 is a Dirac delta,
+    /// Adds one GGX lobe of covariance `cov` with per-channel `energy`; a lobe of roughness 0 is a Dirac delta,
     /// not part of f.
-    fn add_lobe(&self, alpha: f64, energy: impl Fn(usize) -> f64, wi: DVec3, wo: DVec3, h: DVec3, out: &mut [f64]) {
-        if alpha <= 0.0 {
+    fn add_lobe(&self, cov: Cov, energy: impl Fn(usize) -> f64, wi: DVec3, wo: DVec3, h: DVec3, out: &mut [f64]) {
+        let (ax, ay, angle) = Lobe { energy: vec![], cov }.roughness();
+        if ax <= 0.0 && ay <= 0.0 {
             return;
         }
-        let mf = Microfacet::new(crate::optics::microfacet::Distribution::Ggx, alpha, alpha, 0.0);
+        let mf = Microfacet::new(crate::optics::microfacet::Distribution::Ggx, ax, ay, angle);
         let shape = mf.d(h) * mf.g2(self.g2, wi, wo, h) / (4.0 * wi.z * wo.z);
         for (ch, o) in out.iter_mut().enumerate() {
             *o += energy(ch) * shape;
@@ -415,26 +533,52 @@ impl Prepared {
         }
     }
 
-    /// Linear interpolation (in √cos θ) of a cosine in the table: (node, weight of the next node).
-    fn node(cos_theta: f64) -> (usize, f64) {
-        let x = cos_theta.clamp(0.0, 1.0).sqrt() * (TABLE_NODES - 1) as f64;
-        let k = (x as usize).min(TABLE_NODES - 2);
-        (k, x - k as f64)
+    /// Bilinear interpolation weights of a direction in the table: [(run index, weight); 4], linear in √cos θ and
+    /// periodic (period π) in the azimuth.
+    fn corners(t: &LobeTable, cos_theta: f64, w: DVec3) -> [(usize, f64); 4] {
+        let x = cos_theta.clamp(0.0, 1.0).sqrt() * (t.nodes - 1) as f64;
+        let k = (x as usize).min(t.nodes - 2);
+        let fk = x - k as f64;
+        if t.azimuths == 1 {
+            return [(k, 1.0 - fk), (k + 1, fk), (0, 0.0), (0, 0.0)];
+        }
+        let phi = w.y.atan2(w.x).rem_euclid(std::f64::consts::PI) / std::f64::consts::PI * t.azimuths as f64;
+        let a = (phi as usize).min(t.azimuths - 1);
+        let fa = phi - a as f64;
+        let b = (a + 1) % t.azimuths;
+        let n = t.azimuths;
+        [
+            (k * n + a, (1.0 - fk) * (1.0 - fa)),
+            (k * n + b, (1.0 - fk) * fa),
+            ((k + 1) * n + a, fk * (1.0 - fa)),
+            ((k + 1) * n + b, fk * fa),
+        ]
     }
 
     fn eval_tabulated(&self, t: &LobeTable, wi: DVec3, wo: DVec3, h: DVec3, cos_theta: f64, out: &mut [f64]) {
         let c = self.channels;
-        let (k, w) = Self::node(cos_theta);
-        let lerp = |v: &[f64], stride: usize, j: usize| v[k * stride + j] * (1.0 - w) + v[(k + 1) * stride + j] * w;
+        let at = Self::corners(t, cos_theta, wo);
         for j in 0..t.lobes {
-            self.add_lobe(lerp(&t.alpha, t.lobes, j), |ch| lerp(&t.energy, t.lobes * c, j * c + ch), wi, wo, h, out);
+            let cov = at.iter().fold(Cov::ZERO, |acc, &(r, w)| acc + w * t.cov[r * t.lobes + j]);
+            let energy = |ch| at.iter().map(|&(r, w)| w * t.energy[(r * t.lobes + j) * c + ch]).sum::<f64>();
+            self.add_lobe(cov, energy, wi, wo, h, out);
         }
         if self.diffuse.is_some() {
-            let ((ki, wi_w), (ko, wo_w)) = (Self::node(wi.z), Self::node(wo.z));
-            let down = |ch| t.t_down[ki * c + ch] * (1.0 - wi_w) + t.t_down[(ki + 1) * c + ch] * wi_w;
-            let up = |ch| t.t_up[ko * c + ch] * (1.0 - wo_w) + t.t_up[(ko + 1) * c + ch] * wo_w;
+            let (down_at, up_at) = (Self::corners(t, wi.z, wi), Self::corners(t, wo.z, wo));
+            let down = |ch| down_at.iter().map(|&(r, w)| w * t.t_down[r * c + ch]).sum::<f64>();
+            let up = |ch| up_at.iter().map(|&(r, w)| w * t.t_up[r * c + ch]).sum::<f64>();
             self.add_diffuse(down, up, out);
         }
+    }
+}
+
+/// (cos φ, sin φ) of a direction's azimuth; (1, 0) along the normal.
+fn azimuth(w: DVec3) -> (f64, f64) {
+    let r = w.x.hypot(w.y);
+    if r == 0.0 {
+        (1.0, 0.0)
+    } else {
+        (w.x / r, w.y / r)
     }
 }
 
@@ -473,6 +617,17 @@ mod tests {
     }
 
     #[test]
+    fn covariance_eigen_decomposition_round_trips() {
+        let c = Cov::oriented(0.3, 0.05, 0.7);
+        let (l1, l2, angle) = c.eigen();
+        assert!((l1 - 0.3).abs() < 1e-12 && (l2 - 0.05).abs() < 1e-12);
+        let back = Cov::oriented(l1, l2, angle);
+        assert!((back.xx - c.xx).abs() < 1e-12 && (back.xy - c.xy).abs() < 1e-12 && (back.yy - c.yy).abs() < 1e-12);
+        assert_eq!(Cov::iso(0.2).eigen(), (0.2, 0.2, 0.0));
+        assert!((c.along(0.7f64.cos(), 0.7f64.sin()) - 0.3).abs() < 1e-12);
+    }
+
+    #[test]
     fn variance_map_round_trips() {
         for a in [0.0, 0.01, 0.1, 0.5, 0.9] {
             assert!((alpha_from_variance(variance_from_alpha(a)) - a).abs() < 1e-12);
@@ -485,9 +640,10 @@ mod tests {
             Stack::new(vec![Layer::Conductor { ior: vec![0.2], k: vec![3.0], alpha: (0.3, 0.3), angle: 0.0 }], 1.0)
                 .unwrap();
         let p = prepare(&stack, &Options::default()).unwrap();
-        let lobes = p.lobes(0.7);
+        let lobes = p.lobes(DVec3::new((1.0f64 - 0.49).sqrt(), 0.0, 0.7));
         assert_eq!(lobes.len(), 1);
-        assert!((lobes[0].1 - 0.3).abs() < 1e-9);
-        assert!((lobes[0].0[0] - tables::fgd().lookup(0.7, 0.3, 0.2, 3.0)).abs() < 1e-12);
+        let (ax, ay, angle) = lobes[0].roughness();
+        assert!((ax - 0.3).abs() < 1e-9 && ax == ay && angle == 0.0);
+        assert!((lobes[0].energy[0] - tables::fgd().lookup(0.7, 0.3, 0.2, 3.0)).abs() < 1e-12);
     }
 }

@@ -187,6 +187,9 @@ pub fn eval(
                     }
                     None => (wi, wo),
                 };
+                if wi.z <= 0.0 || wo.z <= 0.0 {
+                    break; // below a tilted base normal's horizon: the base returns nothing
+                }
                 f += weight
                     * base.tint
                     * match opaque {

@@ -104,6 +104,8 @@ impl Prepared {
 pub struct Patina {
     pub bare: Prepared,
     pub patina: Prepared,
+    /// Elek's m₂ ≥ m₁ against the interpolated patina roughness.
+    pub clamp: bool,
     /// The bare top roughness: where the patina layer's roughness starts.
     pub bare_alpha: (f64, f64),
     /// Tarnish tone multiplying the base under the patina, per channel.
@@ -133,6 +135,15 @@ impl Patina {
         if !matches!(patina.layers[..], [Layer::Dielectric { .. }, _]) {
             return value_error("patina: the patina stack must be the patina (a Dielectric layer) over an opaque base");
         }
+        if bare.channels != patina.channels {
+            return value_error(format!(
+                "patina: the bare stack has {} channels but the patina stack has {}",
+                bare.channels, patina.channels
+            ));
+        }
+        if opts.elek_precomputed {
+            return value_error("precomputed: the patina's IOR changes per element, so it has no precomputed tables");
+        }
         if tint.len() != patina.channels {
             return value_error(format!("tint has {} channels but the stack has {}", tint.len(), patina.channels));
         }
@@ -140,7 +151,16 @@ impl Patina {
             Some(Layer::Dielectric { alpha, .. } | Layer::Conductor { alpha, .. }) => *alpha,
             _ => (0.0, 0.0),
         };
-        Ok(Patina { bare: prepare(bare, opts)?, patina: prepare(patina, opts)?, bare_alpha, tint, extent, transition })
+        Ok(Patina {
+            bare: prepare(bare, opts)?,
+            // The roughness clamp is applied per element, against the patina's interpolated roughness.
+            patina: prepare(patina, &Options { clamp_roughness: false, ..*opts })?,
+            clamp: opts.clamp_roughness,
+            bare_alpha,
+            tint,
+            extent,
+            transition,
+        })
     }
 
     /// extentFactor = 1 − smoothstep(extent − transition, extent + transition, mask): 1 where the patina covers.
@@ -168,12 +188,11 @@ impl Patina {
             let rescale = |v: &[f64]| -> Vec<f64> {
                 v.iter().zip(&iface.eta).zip(&eta_top).map(|((x, e), t)| x * e / t).collect()
             };
+            let target = if iface.mf.is_smooth() { (0.0, 0.0) } else { (iface.mf.alpha_x, iface.mf.alpha_y) };
+            let alpha = (lerp(self.bare_alpha.0, target.0), lerp(self.bare_alpha.1, target.1));
             let top = SpLayer::Dielectric {
                 iface: single_pass::Interface {
-                    mf: iface.mf.with_alpha(
-                        lerp(self.bare_alpha.0, iface.mf.alpha_x),
-                        lerp(self.bare_alpha.1, iface.mf.alpha_y),
-                    ),
+                    mf: iface.mf.with_alpha(alpha.0, alpha.1),
                     eta: eta_top.clone(),
                     kappa: iface.kappa.clone(),
                     conductor: false,
@@ -185,7 +204,11 @@ impl Patina {
             };
             let base = match base {
                 SpLayer::Conductor(b) => SpLayer::Conductor(single_pass::Interface {
-                    mf: b.mf,
+                    mf: if self.clamp && !b.mf.is_smooth() {
+                        b.mf.with_alpha(b.mf.alpha_x.max(alpha.0), b.mf.alpha_y.max(alpha.1))
+                    } else {
+                        b.mf
+                    },
                     eta: rescale(&b.eta),
                     kappa: rescale(&b.kappa),
                     conductor: true,
