@@ -86,6 +86,12 @@ impl Cov {
         let r = half.hypot(self.xy);
         (mean + r, mean - r, 0.5 * self.xy.atan2(half))
     }
+
+    /// The anisotropic GGX lobe (αx, αy, tangent angle) of this covariance: h⁻¹ of the eigenvalues.
+    pub fn ggx(self) -> (f64, f64, f64) {
+        let (l1, l2, angle) = self.eigen();
+        (alpha_from_variance(l1), alpha_from_variance(l2), angle)
+    }
 }
 
 impl std::ops::Add for Cov {
@@ -126,8 +132,7 @@ pub struct Lobe {
 impl Lobe {
     /// (αx, αy, angle) of the lobe's GGX distribution.
     pub fn roughness(&self) -> (f64, f64, f64) {
-        let (l1, l2, angle) = self.cov.eigen();
-        (alpha_from_variance(l1), alpha_from_variance(l2), angle)
+        self.cov.ggx()
     }
 }
 
@@ -173,8 +178,10 @@ struct LobeTable {
     azimuths: usize,
     /// [node][azimuth][lobe][channel]
     energy: Vec<f64>,
-    /// [node][azimuth][lobe]
+    /// [node][azimuth][lobe]: covariances (anisotropic stacks, interpolated then eigen-decomposed) or the GGX
+    /// roughness (isotropic stacks, interpolated directly: no decomposition per evaluation).
     cov: Vec<Cov>,
+    alpha: Vec<f64>,
     /// [node][azimuth][channel]: energy transmitted down to the base (T0i) and up from it (Ti0).
     t_down: Vec<f64>,
     t_up: Vec<f64>,
@@ -370,6 +377,7 @@ impl Prepared {
             azimuths,
             energy: vec![0.0; runs.len() * lobes * c],
             cov: vec![Cov::ZERO; runs.len() * lobes],
+            alpha: vec![0.0; runs.len() * lobes],
             t_down: Vec::with_capacity(runs.len() * c),
             t_up: Vec::with_capacity(runs.len() * c),
         };
@@ -377,6 +385,7 @@ impl Prepared {
             for (j, lobe) in l.iter().enumerate() {
                 t.energy[(k * lobes + j) * c..(k * lobes + j + 1) * c].copy_from_slice(&lobe.energy);
                 t.cov[k * lobes + j] = lobe.cov;
+                t.alpha[k * lobes + j] = lobe.roughness().0;
             }
             t.t_down.extend_from_slice(&state.t0i);
             t.t_up.extend_from_slice(&state.ti0);
@@ -499,7 +508,7 @@ impl Prepared {
         }
         let (lobes, view) = self.adding(cos_theta, cos_phi, sin_phi);
         for lobe in &lobes {
-            self.add_lobe(lobe.cov, |ch| lobe.energy[ch], wi, wo, h, out);
+            self.add_lobe(lobe.roughness(), |ch| lobe.energy[ch], wi, wo, h, out);
         }
         if self.diffuse.is_some() {
             // T↓ at θi and T↑ at θo (not at |wo·h|): symmetric under exchange, since T0i = Ti0 in this model.
@@ -510,10 +519,17 @@ impl Prepared {
         }
     }
 
-    /// Adds one GGX lobe of covariance `cov` with per-channel `energy`; a lobe of roughness 0 is a Dirac delta,
-    /// not part of f.
-    fn add_lobe(&self, cov: Cov, energy: impl Fn(usize) -> f64, wi: DVec3, wo: DVec3, h: DVec3, out: &mut [f64]) {
-        let (ax, ay, angle) = Lobe { energy: vec![], cov }.roughness();
+    /// Adds one GGX lobe of roughness (αx, αy, tangent angle) with per-channel `energy`; a lobe of roughness 0 is
+    /// a Dirac delta, not part of f.
+    fn add_lobe(
+        &self,
+        (ax, ay, angle): (f64, f64, f64),
+        energy: impl Fn(usize) -> f64,
+        wi: DVec3,
+        wo: DVec3,
+        h: DVec3,
+        out: &mut [f64],
+    ) {
         if ax <= 0.0 && ay <= 0.0 {
             return;
         }
@@ -559,9 +575,14 @@ impl Prepared {
         let c = self.channels;
         let at = Self::corners(t, cos_theta, wo);
         for j in 0..t.lobes {
-            let cov = at.iter().fold(Cov::ZERO, |acc, &(r, w)| acc + w * t.cov[r * t.lobes + j]);
+            let roughness = if t.azimuths == 1 {
+                let alpha = at.iter().map(|&(r, w)| w * t.alpha[r * t.lobes + j]).sum::<f64>();
+                (alpha, alpha, 0.0)
+            } else {
+                at.iter().fold(Cov::ZERO, |acc, &(r, w)| acc + w * t.cov[r * t.lobes + j]).ggx()
+            };
             let energy = |ch| at.iter().map(|&(r, w)| w * t.energy[(r * t.lobes + j) * c + ch]).sum::<f64>();
-            self.add_lobe(cov, energy, wi, wo, h, out);
+            self.add_lobe(roughness, energy, wi, wo, h, out);
         }
         if self.diffuse.is_some() {
             let (down_at, up_at) = (Self::corners(t, wi.z, wi), Self::corners(t, wo.z, wo));
