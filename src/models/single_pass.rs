@@ -11,10 +11,9 @@
 //! each interface, which both publications omit, is lamina's option `eta2` (on by default: measured in
 //! docs/validation.md).
 
-use crate::bsdf;
 use crate::optics::diffuse;
 use crate::optics::fresnel::FresnelForm;
-use crate::optics::microfacet::{Distribution, G2Form, Microfacet};
+use crate::optics::microfacet::{Distribution, Microfacet};
 use crate::sampling::orthonormal_basis;
 use crate::stack::{Layer, Stack};
 use crate::tables::elek::FresnelTable;
@@ -44,11 +43,6 @@ impl Interface {
     /// Fills `table` with 128-sample Fresnel tables (Elek 2010).
     pub fn precompute(&mut self, form: FresnelForm) {
         self.table = (0..self.eta.len()).map(|c| FresnelTable::new(|cos| self.fresnel(form, cos, c))).collect();
-    }
-
-    /// The microfacet reflection lobe F(wi·h) D G2 / (4 cos θi cos θo) of channel `c` (Cook–Torrance 1982).
-    pub fn lobe(&self, g2: G2Form, form: FresnelForm, wi: DVec3, wo: DVec3, c: usize) -> f64 {
-        bsdf::reflection_geometry(&self.mf, g2, wi, wo).map_or(0.0, |(geo, cos_h)| geo * self.fresnel(form, cos_h, c))
     }
 }
 
@@ -146,40 +140,81 @@ pub struct Base {
 
 pub const PLAIN_BASE: Base = Base { normal: None, tint: 1.0 };
 
-/// f for channel `c`: `specular` is an interface's lobe at (wi, wo), `transmit` its passage into the slab below
-/// (None: nothing gets through). With `eta2` every passage through a dielectric interface also carries the radiance
+/// What distinguishes one single-pass model from another: its lobe geometry and Fresnel term, and how a dielectric
+/// interface transmits.
+pub trait Transport {
+    /// D G2 / (4 cos θi cos θo) of the interface at (wi, wo) and the cosine wi·h its Fresnel term takes.
+    fn lobe(&self, iface: &Interface, wi: DVec3, wo: DVec3) -> Option<(f64, f64)>;
+    /// The Fresnel reflectance of channel `c` at cosine `cos_i`.
+    fn fresnel(&self, iface: &Interface, cos_i: f64, c: usize) -> f64;
+    /// The passage of channel `c` (and of every channel sharing its IOR) into the slab below.
+    fn passage(&self, iface: &Interface, wi: DVec3, wo: DVec3, c: usize) -> Option<Passage>;
+}
+
+/// Most channels evaluated together (a group shares one pass through the stack).
+const GROUP: usize = 16;
+
+/// Groups of channels that share the geometry of a pass: when every dielectric interface has one IOR for all
+/// channels, the refracted directions, transmissions and lobe shapes are the same for all of them and are computed
+/// once per group of up to 16 channels; otherwise (dispersion) each channel makes its own pass.
+pub fn channel_groups(layers: &[SpLayer], channels: usize) -> Vec<std::ops::Range<usize>> {
+    let shared = layers.iter().all(|l| match l {
+        SpLayer::Dielectric { iface, .. } => iface.eta.iter().all(|e| *e == iface.eta[0]),
+        _ => true,
+    });
+    let step = if shared { GROUP } else { 1 };
+    (0..channels).step_by(step).map(|c| c..(c + step).min(channels)).collect()
+}
+
+/// f for the channels of `group` into `out`: each interface's lobe at the current directions, then the passage into
+/// the slab below (None: nothing gets through), down to the opaque base. `base` holds the base's modifiers per
+/// channel (or one for all). With `eta2` every passage through a dielectric interface also carries the radiance
 /// compression 1/η² of the exact smooth-coat result (f = T(θi) T(θo) f_below(θi′, θo′) / η², e.g. Mitsuba's
 /// `plastic`), which neither publication has.
 #[allow(clippy::too_many_arguments)]
 pub fn eval(
+    model: &impl Transport,
     layers: &[SpLayer],
     wi: DVec3,
     wo: DVec3,
-    c: usize,
-    base: Base,
+    group: std::ops::Range<usize>,
+    base: &[Base],
     eta2: bool,
-    specular: impl Fn(&Interface, DVec3, DVec3, usize) -> f64,
-    transmit: impl Fn(&Interface, DVec3, DVec3, usize) -> Option<Passage>,
-) -> f64 {
+    out: &mut [f64],
+) {
     let (mut wi, mut wo) = (wi, wo);
-    let mut weight = 1.0;
-    let mut f = 0.0;
+    let c0 = group.start;
+    let mut weight = [1.0f64; GROUP];
+    let weight = &mut weight[..group.len()];
+    let channels = || group.clone().zip(0..);
+    let add_lobe =
+        |iface: &Interface, wi: DVec3, wo: DVec3, weight: &[f64], tint: &dyn Fn(usize) -> f64, out: &mut [f64]| {
+            if let Some((geo, cos_h)) = model.lobe(iface, wi, wo) {
+                for (c, g) in channels() {
+                    out[c] += weight[g] * tint(c) * geo * model.fresnel(iface, cos_h, c);
+                }
+            }
+        };
     for layer in layers {
         match layer {
             SpLayer::Dielectric { iface, thickness, sigma_t, albedo } => {
-                f += weight * specular(iface, wi, wo, c);
-                let Some(p) = transmit(iface, wi, wo, c) else { break };
-                let k = beer_lambert(sigma_t[c], *thickness, p.wi, p.wo);
-                let compression = if eta2 { 1.0 / (iface.eta[c] * iface.eta[c]) } else { 1.0 };
-                f += weight * p.t_light * p.t_view_slab * compression * (1.0 - k) * albedo[c] * FRAC_1_PI;
-                weight *= p.t_light * p.t_view * compression * k;
+                add_lobe(iface, wi, wo, weight, &|_| 1.0, out);
+                let Some(p) = model.passage(iface, wi, wo, c0) else { return };
+                let compression = if eta2 { 1.0 / (iface.eta[c0] * iface.eta[c0]) } else { 1.0 };
+                let through = p.t_light * compression;
+                for (c, g) in channels() {
+                    let k = beer_lambert(sigma_t[c], *thickness, p.wi, p.wo);
+                    out[c] += weight[g] * through * p.t_view_slab * (1.0 - k) * albedo[c] * FRAC_1_PI;
+                    weight[g] *= through * p.t_view * k;
+                }
                 (wi, wo) = (p.wi, p.wo);
-                if weight == 0.0 {
-                    break;
+                if weight.iter().all(|w| *w == 0.0) {
+                    return;
                 }
             }
             opaque => {
-                let (wi, wo) = match base.normal {
+                let tint = |c: usize| base[c.min(base.len() - 1)].tint;
+                let (wi, wo) = match base[0].normal {
                     Some(n) => {
                         let (t, b) = orthonormal_basis(n);
                         let local = |w: DVec3| DVec3::new(w.dot(t), w.dot(b), w.dot(n));
@@ -188,17 +223,19 @@ pub fn eval(
                     None => (wi, wo),
                 };
                 if wi.z <= 0.0 || wo.z <= 0.0 {
-                    break; // below a tilted base normal's horizon: the base returns nothing
+                    return; // below a tilted base normal's horizon: the base returns nothing
                 }
-                f += weight
-                    * base.tint
-                    * match opaque {
-                        SpLayer::Conductor(iface) => specular(iface, wi, wo, c),
-                        SpLayer::Diffuse { albedo, sigma } => albedo[c] * diffuse::oren_nayar_shape(*sigma, wi, wo),
-                        SpLayer::Dielectric { .. } => unreachable!(),
-                    };
+                match opaque {
+                    SpLayer::Conductor(iface) => add_lobe(iface, wi, wo, weight, &tint, out),
+                    SpLayer::Diffuse { albedo, sigma } => {
+                        let shape = diffuse::oren_nayar_shape(*sigma, wi, wo);
+                        for (c, g) in channels() {
+                            out[c] += weight[g] * tint(c) * albedo[c] * shape;
+                        }
+                    }
+                    SpLayer::Dielectric { .. } => unreachable!(),
+                }
             }
         }
     }
-    f
 }

@@ -8,8 +8,9 @@
 //! the roughness that the Smith masking of that direction sees — and stays in its plane of incidence. The lobes
 //! themselves use the full anisotropic D and G2.
 
-use super::single_pass::{self, refracted_up, Passage, SpLayer, PLAIN_BASE};
+use super::single_pass::{self, refracted_up, Interface, Passage, SpLayer, Transport, PLAIN_BASE};
 use super::Options;
+use crate::bsdf;
 use crate::optics::fresnel::FresnelForm;
 use crate::optics::microfacet::{Distribution, G2Form};
 use crate::stack::{value_error, Result, Stack};
@@ -18,6 +19,7 @@ use glam::DVec3;
 
 pub struct Prepared {
     layers: Vec<SpLayer>,
+    groups: Vec<std::ops::Range<usize>>,
     g2: G2Form,
     fresnel: FresnelForm,
     eta2: bool,
@@ -42,7 +44,40 @@ pub fn prepare(stack: &Stack, opts: &Options) -> Result<Prepared> {
         }
     }
     steinberg(); // generate or load the tables outside the parallel evaluation
-    Ok(Prepared { layers, g2: opts.g2, fresnel: opts.fresnel, eta2: opts.eta2, fitted: opts.steinberg_fitted })
+    let groups = single_pass::channel_groups(&layers, stack.channels);
+    Ok(Prepared { layers, groups, g2: opts.g2, fresnel: opts.fresnel, eta2: opts.eta2, fitted: opts.steinberg_fitted })
+}
+
+impl Transport for Prepared {
+    /// Cook–Torrance GGX lobe (Cook & Torrance 1982 with the GGX D and Smith G2 of Walter et al. 2007).
+    fn lobe(&self, iface: &Interface, wi: DVec3, wo: DVec3) -> Option<(f64, f64)> {
+        bsdf::reflection_geometry(&iface.mf, self.g2, wi, wo)
+    }
+
+    fn fresnel(&self, iface: &Interface, cos_i: f64, c: usize) -> f64 {
+        iface.fresnel(self.fresnel, cos_i, c)
+    }
+
+    /// t(wo) t(wi) and the mean refracted directions from the tables, at each direction's projected roughness.
+    fn passage(&self, iface: &Interface, wi: DVec3, wo: DVec3, c: usize) -> Option<Passage> {
+        let table = steinberg();
+        let lookup = |w: DVec3| {
+            let alpha = if iface.mf.is_smooth() { 0.0 } else { iface.mf.projected_alpha(w) };
+            if self.fitted {
+                table.fitted(w.z, alpha, iface.eta[c])
+            } else {
+                table.tabulated(w.z, alpha, iface.eta[c])
+            }
+        };
+        let ((t_i, s_i), (t_o, s_o)) = (lookup(wi), lookup(wo));
+        Some(Passage {
+            t_light: t_i,
+            t_view: t_o,
+            t_view_slab: t_o,
+            wi: refracted_up(wi, s_i),
+            wo: refracted_up(wo, s_o),
+        })
+    }
 }
 
 impl Prepared {
@@ -51,36 +86,8 @@ impl Prepared {
         if wi.z <= 0.0 || wo.z <= 0.0 {
             return;
         }
-        let table = steinberg();
-        let lookup = |w: DVec3, iface: &single_pass::Interface, c: usize| {
-            let alpha = if iface.mf.is_smooth() { 0.0 } else { iface.mf.projected_alpha(w) };
-            if self.fitted {
-                table.fitted(w.z, alpha, iface.eta[c])
-            } else {
-                table.tabulated(w.z, alpha, iface.eta[c])
-            }
-        };
-        for (c, o) in out.iter_mut().enumerate() {
-            *o = single_pass::eval(
-                &self.layers,
-                wi,
-                wo,
-                c,
-                PLAIN_BASE,
-                self.eta2,
-                |iface, wi, wo, c| iface.lobe(self.g2, self.fresnel, wi, wo, c),
-                |iface, wi, wo, c| {
-                    let (t_i, s_i) = lookup(wi, iface, c);
-                    let (t_o, s_o) = lookup(wo, iface, c);
-                    Some(Passage {
-                        t_light: t_i,
-                        t_view: t_o,
-                        t_view_slab: t_o,
-                        wi: refracted_up(wi, s_i),
-                        wo: refracted_up(wo, s_o),
-                    })
-                },
-            );
+        for g in &self.groups {
+            single_pass::eval(self, &self.layers, wi, wo, g.clone(), &[PLAIN_BASE], self.eta2, out);
         }
     }
 }

@@ -9,8 +9,9 @@
 //! Car paint: a per-sample base normal normalize(flake + max(distance, 1) ẑ) (Elek's distance-based smoothing).
 //! Copper patina: `eval_patina`.
 
-use super::single_pass::{self, refracted_up, Base, Passage, SpLayer};
+use super::single_pass::{self, refracted_up, Base, Interface, Passage, SpLayer, Transport};
 use super::Options;
+use crate::bsdf;
 use crate::optics::fresnel::FresnelForm;
 use crate::optics::microfacet::{Distribution, G2Form};
 use crate::stack::{value_error, Layer, Result, Stack};
@@ -19,6 +20,7 @@ use glam::DVec3;
 
 pub struct Prepared {
     layers: Vec<SpLayer>,
+    groups: Vec<std::ops::Range<usize>>,
     g2: G2Form,
     fresnel: FresnelForm,
     eta2: bool,
@@ -36,23 +38,29 @@ pub fn prepare(stack: &Stack, opts: &Options) -> Result<Prepared> {
         }
         beckmann_table();
     }
-    Ok(Prepared { layers, g2: opts.g2, fresnel: opts.fresnel, eta2: opts.eta2, precomputed })
+    let groups = single_pass::channel_groups(&layers, stack.channels);
+    Ok(Prepared { layers, groups, g2: opts.g2, fresnel: opts.fresnel, eta2: opts.eta2, precomputed })
 }
 
-impl Prepared {
-    /// Torrance–Sparrow lobe of one interface; the precomputed variant takes D from Elek's table (isotropic
+impl Transport for Prepared {
+    /// Torrance–Sparrow lobe D G / (4 cos θi cos θo); the precomputed variant takes D from Elek's table (isotropic
     /// Beckmann interfaces; others keep the analytic D).
-    fn lobe(&self, iface: &single_pass::Interface, wi: DVec3, wo: DVec3, c: usize) -> f64 {
-        let f = iface.lobe(self.g2, self.fresnel, wi, wo, c);
+    fn lobe(&self, iface: &Interface, wi: DVec3, wo: DVec3) -> Option<(f64, f64)> {
+        let (geo, cos_h) = bsdf::reflection_geometry(&iface.mf, self.g2, wi, wo)?;
         let mf = &iface.mf;
-        if !self.precomputed || f == 0.0 || mf.dist != Distribution::Beckmann || mf.alpha_x != mf.alpha_y {
-            return f;
+        if !self.precomputed || geo == 0.0 || mf.dist != Distribution::Beckmann || mf.alpha_x != mf.alpha_y {
+            return Some((geo, cos_h));
         }
         let h = (wi + wo).normalize();
-        f * beckmann_table().lookup(h.z, mf.alpha_x) / mf.d(h)
+        Some((geo * beckmann_table().lookup(h.z, mf.alpha_x) / mf.d(h), cos_h))
     }
 
-    fn passage(&self, iface: &single_pass::Interface, wi: DVec3, wo: DVec3, c: usize) -> Option<Passage> {
+    fn fresnel(&self, iface: &Interface, cos_i: f64, c: usize) -> f64 {
+        iface.fresnel(self.fresnel, cos_i, c)
+    }
+
+    /// Snell's law at the macro-surface; T₁₂ = 1 − F(cos θL) into the layer, t = (1 − G) + T₂₁ G out of it.
+    fn passage(&self, iface: &Interface, wi: DVec3, wo: DVec3, c: usize) -> Option<Passage> {
         let eta = iface.eta[c];
         let (sin_i, sin_o) = (wi.x.hypot(wi.y) / eta, wo.x.hypot(wo.y) / eta);
         if sin_i >= 1.0 || sin_o >= 1.0 {
@@ -69,23 +77,16 @@ impl Prepared {
             wo: refracted_up(wo, sin_o),
         })
     }
+}
 
+impl Prepared {
     fn eval_layers(&self, layers: &[SpLayer], wi: DVec3, wo: DVec3, base: &[Base], out: &mut [f64]) {
         out.fill(0.0);
         if wi.z <= 0.0 || wo.z <= 0.0 {
             return;
         }
-        for (c, o) in out.iter_mut().enumerate() {
-            *o = single_pass::eval(
-                layers,
-                wi,
-                wo,
-                c,
-                base[c.min(base.len() - 1)],
-                self.eta2,
-                |iface, wi, wo, c| self.lobe(iface, wi, wo, c),
-                |iface, wi, wo, c| self.passage(iface, wi, wo, c),
-            );
+        for g in &self.groups {
+            single_pass::eval(self, layers, wi, wo, g.clone(), base, self.eta2, out);
         }
     }
 
