@@ -217,15 +217,12 @@ def reference_section():
 _REFERENCE_ALBEDO = {}
 
 
-def reference_albedo(name, wi):
-    """Brute-force reference albedo (green) on the suite's θi, smooth tops' specular delta excluded (cached)."""
+def reference_albedo(name):
+    """lamina.reference.suite_reference_albedo, green channel (computed once per material)."""
     if name not in _REFERENCE_ALBEDO:
-        stack = lamina.materials.suite(name)
-        a_r = stack.albedo(wi, "reference", samples=200_000, progress=False)[0][:, 1]
-        top = stack.layers[0]
-        if isinstance(top, lamina.Dielectric) and top.roughness == 0.0:
-            a_r = a_r - lamina.optics.fresnel_dielectric(wi[:, 2], float(np.mean(top.ior)))
-        _REFERENCE_ALBEDO[name] = a_r
+        from lamina.reference import suite_reference_albedo
+
+        _REFERENCE_ALBEDO[name] = suite_reference_albedo(name)[1][:, 1]
     return _REFERENCE_ALBEDO[name]
 
 
@@ -246,7 +243,7 @@ def suite_table(model, **options):
         lobe = np.abs(b - f).sum(axis=(1, 2)) / np.abs(f).sum(axis=(1, 2))
         a_m = stack.albedo(wi[:, 0, :], model, **options)[:, 1]
         out.append(f"| {name} | " + " / ".join(f"{x:.3f}" for x in lobe) + " | "
-                   + " / ".join(f"{x:+.3f}" for x in a_m - reference_albedo(name, wi[:, 0, :])) + " |")
+                   + " / ".join(f"{x:+.3f}" for x in a_m - reference_albedo(name)) + " |")
     return out
 
 

@@ -110,23 +110,16 @@ def suite_reference(tmp_path_factory):
 
 @pytest.fixture(scope="session")
 def suite_reference_albedo():
-    """Brute-force reference albedo (green channel) of a suite material at the suite's θi, 200k paths each (seed
-    0), with a smooth top's specular delta removed (the analytic models exclude Dirac lobes): name -> (5,)."""
-    import lamina
-    from lamina.reference import SUITE_THETAS
+    """lamina.reference.suite_reference_albedo (200k paths, seed 0), green channel, once per session:
+    name -> (wi (5, 3), albedo (5,))."""
+    from lamina import reference as R
 
-    t = np.radians(SUITE_THETAS)
-    wi = np.stack([np.sin(t), 0 * t, np.cos(t)], -1)
     results = {}
 
     def get(name: str):
         if name not in results:
-            stack = lamina.materials.suite(name)
-            a = stack.albedo(wi, "reference", samples=200_000, progress=False)[0][:, 1]
-            top = stack.layers[0]
-            if isinstance(top, lamina.Dielectric) and top.roughness == 0.0:
-                a = a - lamina.optics.fresnel_dielectric(wi[:, 2], float(np.mean(top.ior)))
-            results[name] = (wi, a)
+            wi, albedo, _ = R.suite_reference_albedo(name)
+            results[name] = (wi, albedo[:, 1])
         return results[name]
 
     return get

@@ -163,3 +163,21 @@ def suite_reference(name: str, samples: int = 100_000, seed: int = 0, progress=N
     wi, wo = suite_directions()
     f, se = cached_reference(suite(name), wi, wo, samples=samples, seed=seed, progress=progress)
     return wi, wo, f, se
+
+
+def suite_reference_albedo(name: str, samples: int = 200_000, seed: int = 0):
+    """Brute-force reference albedo of suite material `name` at SUITE_THETAS (light in the x–z plane), with a smooth
+    top's specular delta removed (the analytic models do not return Dirac lobes): (wi (5, 3), albedo (5, channels),
+    stderr (5, channels))."""
+    from . import optics
+    from .layers import Dielectric
+    from .materials import suite
+
+    t = np.radians(SUITE_THETAS)
+    wi = np.stack([np.sin(t), np.zeros_like(t), np.cos(t)], -1)
+    stack = suite(name)
+    albedo, se = stack.albedo(wi, "reference", samples=samples, seed=seed, progress=False)
+    top = stack.layers[0]
+    if isinstance(top, Dielectric) and top.roughness == 0.0:
+        albedo = albedo - optics.fresnel_dielectric(wi[:, 2], float(np.mean(top.ior)))[:, None]
+    return wi, albedo, se
