@@ -24,6 +24,9 @@ demo: develop
 	$(VENV)/bin/lamina plot --material gold --out out
 	$(VENV)/bin/lamina plot --material brushed-aluminium --out out
 	$(VENV)/bin/lamina plot --material red-plastic --out out
+	$(VENV)/bin/lamina plot --material coated-copper --model belcour --out out
+	$(VENV)/bin/lamina plot --material coated-copper --model steinberg --out out
+	$(VENV)/bin/lamina plot --material car-paint --model weidlich_wilkie --out out
 
 # Debian's libLLVM for Mitsuba's llvm_ad_* variants, installed when running as root (CI and dev machines).
 system-deps:

@@ -34,7 +34,8 @@ def plastic(albedo=(0.6, 0.1, 0.08), ior: float = 1.5, roughness: Roughness = 0.
 
 
 def preset(name: str) -> Stack:
-    """A named single-interface material for demos and plots; see PRESETS."""
+    """A named material for demos and plots (single interfaces, and layered stacks for the layered models); see
+    PRESETS."""
     try:
         return PRESETS[name]()
     except KeyError:
@@ -50,6 +51,11 @@ PRESETS = {
     "brushed-aluminium": lambda: Stack([metal("Al", (0.05, 0.35), angle=np.pi / 4)]),
     "red-plastic": lambda: plastic(),
     "clay": lambda: Stack([Diffuse((0.55, 0.35, 0.25), roughness=0.6)]),
+    # Layered: evaluate with model="belcour", "steinberg" or "weidlich_wilkie".
+    "coated-copper": lambda: Stack([Dielectric(1.5, 0.2), metal("Cu", 0.35)]),
+    "car-paint": lambda: car_paint(),
+    "varnished-wood": lambda: Stack([Dielectric(1.5, 0.05, thickness=1.0, sigma_a=(0.1, 0.35, 0.9)),
+                                     Diffuse((0.45, 0.25, 0.12), roughness=0.3)]),
 }
 
 #: The material suite used for validation and benchmarks: layered stacks covering coats over metals, absorbing and
