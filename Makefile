@@ -16,9 +16,10 @@ $(VPY):
 venv: $(VPY)
 	$(VPY) -m pip install -q "maturin>=1.7,<2" "numpy>=1.22" "matplotlib>=3.5" tqdm
 
-# Builds the Rust extension in release mode into the venv (editable install of python/lamina).
+# Builds the Rust extension in release mode into the venv (editable install of python/lamina); this project's venv
+# even when another one is active in the calling shell.
 develop: venv
-	$(VENV)/bin/maturin develop --release -q
+	VIRTUAL_ENV="$(abspath $(VENV))" $(VENV)/bin/maturin develop --release -q
 
 demo: develop
 	$(VENV)/bin/lamina plot --material gold --out out
