@@ -283,16 +283,20 @@ fn check_stack(layers: &Bound<'_, PyList>, ext_ior: f64, model: Option<&str>) ->
     Ok(stack.channels)
 }
 
+/// A two-way option: false for `a`, true for `b`, ValueError naming `name` otherwise.
+fn parse_choice(name: &str, value: &str, a: &str, b: &str) -> PyResult<bool> {
+    match value {
+        v if v == a => Ok(false),
+        v if v == b => Ok(true),
+        v => Err(PyValueError::new_err(format!("{name} must be {a:?} or {b:?}, got {v:?}"))),
+    }
+}
+
 /// Model options from keyword arguments: the defaults of `model` (Options::for_model), overridden by the known
 /// keys of `options`; an unknown key is a TypeError.
 fn parse_options(model: &str, options: Option<&Bound<'_, PyDict>>) -> PyResult<Options> {
     let mut o = Options::for_model(model);
     let Some(d) = options else { return Ok(o) };
-    let choice = |name: &str, value: &str, a: &str, b: &str| match value {
-        v if v == a => Ok(false),
-        v if v == b => Ok(true),
-        v => Err(PyValueError::new_err(format!("{name} must be {a:?} or {b:?}, got {v:?}"))),
-    };
     for (key, value) in d.iter() {
         let key: String = key.extract()?;
         let text = || -> PyResult<String> {
@@ -306,11 +310,11 @@ fn parse_options(model: &str, options: Option<&Bound<'_, PyDict>>) -> PyResult<O
             "g2" => o.g2 = parse_g2(&text()?)?,
             "fresnel" => o.fresnel = parse_fresnel(&text()?)?,
             "symmetric" => o.symmetric = flag()?,
-            "cosines" => o.belcour.real_cosines = choice("cosines", &text()?, "frozen", "real")?,
-            "jacobian" => o.belcour.jacobian_j21 = choice("jacobian", &text()?, "j12", "j21")?,
-            "energy" => o.belcour.fresnel_energy = choice("energy", &text()?, "fgd", "fresnel")?,
+            "cosines" => o.belcour.real_cosines = parse_choice("cosines", &text()?, "frozen", "real")?,
+            "jacobian" => o.belcour.jacobian_j21 = parse_choice("jacobian", &text()?, "j12", "j21")?,
+            "energy" => o.belcour.fresnel_energy = parse_choice("energy", &text()?, "fgd", "fresnel")?,
             "tabulated" => o.belcour_table = flag()?,
-            "lut" => o.steinberg_fitted = choice("lut", &text()?, "tabulated", "fitted")?,
+            "lut" => o.steinberg_fitted = parse_choice("lut", &text()?, "tabulated", "fitted")?,
             "precomputed" => o.elek_precomputed = flag()?,
             "clamp_roughness" => o.clamp_roughness = flag()?,
             "eta2" => o.eta2 = flag()?,
@@ -403,11 +407,7 @@ fn steinberg_lut<'py>(
     eta: &Bound<'py, PyAny>,
     lut: &str,
 ) -> PyResult<Bound<'py, PyAny>> {
-    let fitted = match lut {
-        "tabulated" => false,
-        "fitted" => true,
-        _ => return Err(PyValueError::new_err(format!("lut must be 'tabulated' or 'fitted', got {lut:?}"))),
-    };
+    let fitted = parse_choice("lut", lut, "tabulated", "fitted")?;
     let table = crate::tables::steinberg::steinberg();
     let inputs = [("mu", mu, Kind::Values(1)), ("alpha", alpha, Kind::Values(1)), ("eta", eta, Kind::Values(1))];
     batch(py, &inputs, 2, |r, o| {

@@ -11,9 +11,10 @@
 //! each interface, which both publications omit, is lamina's option `eta2` (on by default: measured in
 //! docs/validation.md).
 
+use super::Options;
 use crate::optics::diffuse;
 use crate::optics::fresnel::FresnelForm;
-use crate::optics::microfacet::{Distribution, Microfacet};
+use crate::optics::microfacet::{Distribution, G2Form, Microfacet};
 use crate::sampling::orthonormal_basis;
 use crate::stack::{Layer, Stack};
 use crate::tables::elek::FresnelTable;
@@ -50,15 +51,6 @@ pub enum SpLayer {
     Dielectric { iface: Interface, thickness: f64, sigma_t: Vec<f64>, albedo: Vec<f64> },
     Conductor(Interface),
     Diffuse { albedo: Vec<f64>, sigma: f64 },
-}
-
-impl SpLayer {
-    pub fn interface(&self) -> Option<&Interface> {
-        match self {
-            SpLayer::Dielectric { iface, .. } | SpLayer::Conductor(iface) => Some(iface),
-            SpLayer::Diffuse { .. } => None,
-        }
-    }
 }
 
 /// The stack as single-pass layers. With `clamp_roughness` each layer is at least as rough as the one above
@@ -140,13 +132,10 @@ pub struct Base {
 
 pub const PLAIN_BASE: Base = Base { normal: None, tint: 1.0 };
 
-/// What distinguishes one single-pass model from another: its lobe geometry and Fresnel term, and how a dielectric
-/// interface transmits.
+/// What distinguishes one single-pass model from another: its lobe geometry and how a dielectric interface transmits.
 pub trait Transport {
     /// D G2 / (4 cos θi cos θo) of the interface at (wi, wo) and the cosine wi·h its Fresnel term takes.
     fn lobe(&self, iface: &Interface, wi: DVec3, wo: DVec3) -> Option<(f64, f64)>;
-    /// The Fresnel reflectance of channel `c` at cosine `cos_i`.
-    fn fresnel(&self, iface: &Interface, cos_i: f64, c: usize) -> f64;
     /// The passage of channel `c` (and of every channel sharing its IOR) into the slab below.
     fn passage(&self, iface: &Interface, wi: DVec3, wo: DVec3, c: usize) -> Option<Passage>;
 }
@@ -157,7 +146,7 @@ const GROUP: usize = 16;
 /// Groups of channels that share the geometry of a pass: when every dielectric interface has one IOR for all
 /// channels, the refracted directions, transmissions and lobe shapes are the same for all of them and are computed
 /// once per group of up to 16 channels; otherwise (dispersion) each channel makes its own pass.
-pub fn channel_groups(layers: &[SpLayer], channels: usize) -> Vec<std::ops::Range<usize>> {
+fn channel_groups(layers: &[SpLayer], channels: usize) -> Vec<std::ops::Range<usize>> {
     let shared = layers.iter().all(|l| match l {
         SpLayer::Dielectric { iface, .. } => iface.eta.iter().all(|e| *e == iface.eta[0]),
         _ => true,
@@ -166,74 +155,112 @@ pub fn channel_groups(layers: &[SpLayer], channels: usize) -> Vec<std::ops::Rang
     (0..channels).step_by(step).map(|c| c..(c + step).min(channels)).collect()
 }
 
-/// f for the channels of `group` into `out`: each interface's lobe at the current directions, then the passage into
-/// the slab below (None: nothing gets through), down to the opaque base. `base` holds the base's modifiers per
-/// channel (or one for all). With `eta2` every passage through a dielectric interface also carries the radiance
-/// compression 1/η² of the exact smooth-coat result (f = T(θi) T(θo) f_below(θi′, θo′) / η², e.g. Mitsuba's
-/// `plastic`), which neither publication has.
-#[allow(clippy::too_many_arguments)]
-pub fn eval(
-    model: &impl Transport,
-    layers: &[SpLayer],
-    wi: DVec3,
-    wo: DVec3,
-    group: std::ops::Range<usize>,
-    base: &[Base],
+/// What every single-pass model prepares from a stack: its layers, the channel groups of a pass, and the options the
+/// walk itself uses (masking form, Fresnel form, the radiance compression 1/η²).
+pub struct Walk {
+    pub layers: Vec<SpLayer>,
+    groups: Vec<std::ops::Range<usize>>,
+    pub g2: G2Form,
+    pub fresnel: FresnelForm,
     eta2: bool,
-    out: &mut [f64],
-) {
-    let (mut wi, mut wo) = (wi, wo);
-    let c0 = group.start;
-    let mut weight = [1.0f64; GROUP];
-    let weight = &mut weight[..group.len()];
-    let channels = || group.clone().zip(0..);
-    let add_lobe =
-        |iface: &Interface, wi: DVec3, wo: DVec3, weight: &[f64], tint: &dyn Fn(usize) -> f64, out: &mut [f64]| {
-            if let Some((geo, cos_h)) = model.lobe(iface, wi, wo) {
-                for (c, g) in channels() {
-                    out[c] += weight[g] * tint(c) * geo * model.fresnel(iface, cos_h, c);
-                }
-            }
-        };
-    for layer in layers {
-        match layer {
-            SpLayer::Dielectric { iface, thickness, sigma_t, albedo } => {
-                add_lobe(iface, wi, wo, weight, &|_| 1.0, out);
-                let Some(p) = model.passage(iface, wi, wo, c0) else { return };
-                let compression = if eta2 { 1.0 / (iface.eta[c0] * iface.eta[c0]) } else { 1.0 };
-                let through = p.t_light * compression;
-                for (c, g) in channels() {
-                    let k = beer_lambert(sigma_t[c], *thickness, p.wi, p.wo);
-                    out[c] += weight[g] * through * p.t_view_slab * (1.0 - k) * albedo[c] * FRAC_1_PI;
-                    weight[g] *= through * p.t_view * k;
-                }
-                (wi, wo) = (p.wi, p.wo);
-                if weight.iter().all(|w| *w == 0.0) {
-                    return;
-                }
-            }
-            opaque => {
-                let tint = |c: usize| base[c.min(base.len() - 1)].tint;
-                let (wi, wo) = match base[0].normal {
-                    Some(n) => {
-                        let (t, b) = orthonormal_basis(n);
-                        let local = |w: DVec3| DVec3::new(w.dot(t), w.dot(b), w.dot(n));
-                        (local(wi), local(wo))
+}
+
+impl Walk {
+    pub fn new(stack: &Stack, dist: Distribution, opts: &Options) -> Walk {
+        let layers = layers(stack, dist, opts.clamp_roughness);
+        let groups = channel_groups(&layers, stack.channels);
+        Walk { layers, groups, g2: opts.g2, fresnel: opts.fresnel, eta2: opts.eta2 }
+    }
+
+    /// f(wi, wo) of `layers` (this walk's, or a per-element variant of them with the same channel structure) for
+    /// every channel into `out`; zero below the horizon. `base` holds the base's modifiers per channel (or one for
+    /// all).
+    pub fn eval(
+        &self,
+        model: &impl Transport,
+        layers: &[SpLayer],
+        wi: DVec3,
+        wo: DVec3,
+        base: &[Base],
+        out: &mut [f64],
+    ) {
+        out.fill(0.0);
+        if wi.z <= 0.0 || wo.z <= 0.0 {
+            return;
+        }
+        for g in &self.groups {
+            self.eval_group(model, layers, wi, wo, g.clone(), base, out);
+        }
+    }
+
+    /// f for the channels of `group`: each interface's lobe at the current directions, then the passage into the
+    /// slab below (None: nothing gets through), down to the opaque base. With `eta2` every passage through a
+    /// dielectric interface also carries the radiance compression 1/η² of the exact smooth-coat result
+    /// (f = T(θi) T(θo) f_below(θi′, θo′) / η², e.g. Mitsuba's `plastic`), which neither publication has.
+    #[allow(clippy::too_many_arguments)]
+    fn eval_group(
+        &self,
+        model: &impl Transport,
+        layers: &[SpLayer],
+        wi: DVec3,
+        wo: DVec3,
+        group: std::ops::Range<usize>,
+        base: &[Base],
+        out: &mut [f64],
+    ) {
+        let (mut wi, mut wo) = (wi, wo);
+        let c0 = group.start;
+        let mut weight = [1.0f64; GROUP];
+        let weight = &mut weight[..group.len()];
+        let channels = || group.clone().zip(0..);
+        let add_lobe =
+            |iface: &Interface, wi: DVec3, wo: DVec3, weight: &[f64], tint: &dyn Fn(usize) -> f64, out: &mut [f64]| {
+                if let Some((geo, cos_h)) = model.lobe(iface, wi, wo) {
+                    for (c, g) in channels() {
+                        out[c] += weight[g] * tint(c) * geo * iface.fresnel(self.fresnel, cos_h, c);
                     }
-                    None => (wi, wo),
-                };
-                if wi.z <= 0.0 || wo.z <= 0.0 {
-                    return; // below a tilted base normal's horizon: the base returns nothing
                 }
-                match opaque {
-                    SpLayer::Conductor(iface) => add_lobe(iface, wi, wo, weight, &tint, out),
-                    SpLayer::Diffuse { albedo, sigma } => {
-                        let shape = diffuse::oren_nayar_shape(*sigma, wi, wo);
-                        for (c, g) in channels() {
-                            out[c] += weight[g] * tint(c) * albedo[c] * shape;
+            };
+        for layer in layers {
+            match layer {
+                SpLayer::Dielectric { iface, thickness, sigma_t, albedo } => {
+                    add_lobe(iface, wi, wo, weight, &|_| 1.0, out);
+                    let Some(p) = model.passage(iface, wi, wo, c0) else { return };
+                    let compression = if self.eta2 { 1.0 / (iface.eta[c0] * iface.eta[c0]) } else { 1.0 };
+                    let through = p.t_light * compression;
+                    for (c, g) in channels() {
+                        let k = beer_lambert(sigma_t[c], *thickness, p.wi, p.wo);
+                        out[c] += weight[g] * through * p.t_view_slab * (1.0 - k) * albedo[c] * FRAC_1_PI;
+                        weight[g] *= through * p.t_view * k;
+                    }
+                    (wi, wo) = (p.wi, p.wo);
+                    if weight.iter().all(|w| *w == 0.0) {
+                        return;
+                    }
+                }
+                opaque => {
+                    let tint = |c: usize| base[c.min(base.len() - 1)].tint;
+                    let (wi, wo) = match base[0].normal {
+                        Some(n) => {
+                            let (t, b) = orthonormal_basis(n);
+                            let local = |w: DVec3| DVec3::new(w.dot(t), w.dot(b), w.dot(n));
+                            (local(wi), local(wo))
                         }
+                        None => (wi, wo),
+                    };
+                    if wi.z <= 0.0 || wo.z <= 0.0 {
+                        return; // below a tilted base normal's horizon: the base returns nothing
                     }
-                    SpLayer::Dielectric { .. } => unreachable!(),
+                    match opaque {
+                        SpLayer::Conductor(iface) => add_lobe(iface, wi, wo, weight, &tint, out),
+                        SpLayer::Diffuse { albedo, sigma } => {
+                            let shape = diffuse::oren_nayar_shape(*sigma, wi, wo);
+                            for (c, g) in channels() {
+                                out[c] += weight[g] * tint(c) * albedo[c] * shape;
+                            }
+                        }
+                        SpLayer::Dielectric { .. } => unreachable!(),
+                    }
                 }
             }
         }

@@ -8,21 +8,16 @@
 //! the roughness that the Smith masking of that direction sees — and stays in its plane of incidence. The lobes
 //! themselves use the full anisotropic D and G2.
 
-use super::single_pass::{self, refracted_up, Interface, Passage, SpLayer, Transport, PLAIN_BASE};
+use super::single_pass::{refracted_up, Interface, Passage, SpLayer, Transport, Walk, PLAIN_BASE};
 use super::Options;
 use crate::bsdf;
-use crate::optics::fresnel::FresnelForm;
-use crate::optics::microfacet::{Distribution, G2Form};
+use crate::optics::microfacet::Distribution;
 use crate::stack::{value_error, Result, Stack};
 use crate::tables::steinberg::{self as lut, steinberg};
 use glam::DVec3;
 
 pub struct Prepared {
-    layers: Vec<SpLayer>,
-    groups: Vec<std::ops::Range<usize>>,
-    g2: G2Form,
-    fresnel: FresnelForm,
-    eta2: bool,
+    walk: Walk,
     fitted: bool,
 }
 
@@ -30,8 +25,8 @@ pub fn prepare(stack: &Stack, opts: &Options) -> Result<Prepared> {
     if opts.distribution != Distribution::Ggx {
         return value_error("distribution: model 'steinberg' is defined for 'ggx' only (its tables are GGX)");
     }
-    let layers = single_pass::layers(stack, Distribution::Ggx, opts.clamp_roughness);
-    for (i, layer) in layers.iter().enumerate() {
+    let walk = Walk::new(stack, Distribution::Ggx, opts);
+    for (i, layer) in walk.layers.iter().enumerate() {
         if let SpLayer::Dielectric { iface, .. } = layer {
             if let Some(eta) = iface.eta.iter().find(|e| !(lut::ETA_MIN..=lut::ETA_MAX).contains(*e)) {
                 return value_error(format!(
@@ -44,18 +39,13 @@ pub fn prepare(stack: &Stack, opts: &Options) -> Result<Prepared> {
         }
     }
     steinberg(); // generate or load the tables outside the parallel evaluation
-    let groups = single_pass::channel_groups(&layers, stack.channels);
-    Ok(Prepared { layers, groups, g2: opts.g2, fresnel: opts.fresnel, eta2: opts.eta2, fitted: opts.steinberg_fitted })
+    Ok(Prepared { walk, fitted: opts.steinberg_fitted })
 }
 
 impl Transport for Prepared {
     /// Cook–Torrance GGX lobe (Cook & Torrance 1982 with the GGX D and Smith G2 of Walter et al. 2007).
     fn lobe(&self, iface: &Interface, wi: DVec3, wo: DVec3) -> Option<(f64, f64)> {
-        bsdf::reflection_geometry(&iface.mf, self.g2, wi, wo)
-    }
-
-    fn fresnel(&self, iface: &Interface, cos_i: f64, c: usize) -> f64 {
-        iface.fresnel(self.fresnel, cos_i, c)
+        bsdf::reflection_geometry(&iface.mf, self.walk.g2, wi, wo)
     }
 
     /// t(wo) t(wi) and the mean refracted directions from the tables, at each direction's projected roughness.
@@ -82,12 +72,6 @@ impl Transport for Prepared {
 
 impl Prepared {
     pub fn eval(&self, wi: DVec3, wo: DVec3, out: &mut [f64]) {
-        out.fill(0.0);
-        if wi.z <= 0.0 || wo.z <= 0.0 {
-            return;
-        }
-        for g in &self.groups {
-            single_pass::eval(self, &self.layers, wi, wo, g.clone(), &[PLAIN_BASE], self.eta2, out);
-        }
+        self.walk.eval(self, &self.walk.layers, wi, wo, &[PLAIN_BASE], out);
     }
 }

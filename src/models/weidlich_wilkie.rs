@@ -9,54 +9,44 @@
 //! Car paint: a per-sample base normal normalize(flake + max(distance, 1) ẑ) (Elek's distance-based smoothing).
 //! Copper patina: `eval_patina`.
 
-use super::single_pass::{self, refracted_up, Base, Interface, Passage, SpLayer, Transport};
+use super::single_pass::{self, refracted_up, Base, Interface, Passage, SpLayer, Transport, Walk};
 use super::Options;
 use crate::bsdf;
-use crate::optics::fresnel::FresnelForm;
-use crate::optics::microfacet::{Distribution, G2Form};
+use crate::optics::microfacet::Distribution;
 use crate::stack::{value_error, Layer, Result, Stack};
 use crate::tables::elek::beckmann_table;
 use glam::DVec3;
 
 pub struct Prepared {
-    layers: Vec<SpLayer>,
-    groups: Vec<std::ops::Range<usize>>,
-    g2: G2Form,
-    fresnel: FresnelForm,
-    eta2: bool,
+    walk: Walk,
     precomputed: bool,
 }
 
 pub fn prepare(stack: &Stack, opts: &Options) -> Result<Prepared> {
-    let mut layers = single_pass::layers(stack, opts.distribution, opts.clamp_roughness);
+    let mut walk = Walk::new(stack, opts.distribution, opts);
     let precomputed = opts.elek_precomputed;
     if precomputed {
-        for layer in &mut layers {
+        for layer in &mut walk.layers {
             if let SpLayer::Dielectric { iface, .. } | SpLayer::Conductor(iface) = layer {
                 iface.precompute(opts.fresnel);
             }
         }
         beckmann_table();
     }
-    let groups = single_pass::channel_groups(&layers, stack.channels);
-    Ok(Prepared { layers, groups, g2: opts.g2, fresnel: opts.fresnel, eta2: opts.eta2, precomputed })
+    Ok(Prepared { walk, precomputed })
 }
 
 impl Transport for Prepared {
     /// Torrance–Sparrow lobe D G / (4 cos θi cos θo); the precomputed variant takes D from Elek's table (isotropic
     /// Beckmann interfaces; others keep the analytic D).
     fn lobe(&self, iface: &Interface, wi: DVec3, wo: DVec3) -> Option<(f64, f64)> {
-        let (geo, cos_h) = bsdf::reflection_geometry(&iface.mf, self.g2, wi, wo)?;
+        let (geo, cos_h) = bsdf::reflection_geometry(&iface.mf, self.walk.g2, wi, wo)?;
         let mf = &iface.mf;
         if !self.precomputed || geo == 0.0 || mf.dist != Distribution::Beckmann || mf.alpha_x != mf.alpha_y {
             return Some((geo, cos_h));
         }
         let h = (wi + wo).normalize();
         Some((geo * beckmann_table().lookup(h.z, mf.alpha_x) / mf.d(h), cos_h))
-    }
-
-    fn fresnel(&self, iface: &Interface, cos_i: f64, c: usize) -> f64 {
-        iface.fresnel(self.fresnel, cos_i, c)
     }
 
     /// Snell's law at the macro-surface; T₁₂ = 1 − F(cos θL) into the layer, t = (1 − G) + T₂₁ G out of it.
@@ -66,9 +56,9 @@ impl Transport for Prepared {
         if sin_i >= 1.0 || sin_o >= 1.0 {
             return None; // total internal reflection at the macro-surface
         }
-        let t12 = 1.0 - iface.fresnel(self.fresnel, wi.z, c);
-        let t21 = 1.0 - iface.fresnel(self.fresnel, wo.z, c);
-        let g = if iface.mf.is_smooth() { 1.0 } else { iface.mf.g2(self.g2, wi, wo, (wi + wo).normalize()) };
+        let t12 = 1.0 - iface.fresnel(self.walk.fresnel, wi.z, c);
+        let t21 = 1.0 - iface.fresnel(self.walk.fresnel, wo.z, c);
+        let g = if iface.mf.is_smooth() { 1.0 } else { iface.mf.g2(self.walk.g2, wi, wo, (wi + wo).normalize()) };
         Some(Passage {
             t_light: t12,
             t_view: (1.0 - g) + t21 * g,
@@ -80,24 +70,14 @@ impl Transport for Prepared {
 }
 
 impl Prepared {
-    fn eval_layers(&self, layers: &[SpLayer], wi: DVec3, wo: DVec3, base: &[Base], out: &mut [f64]) {
-        out.fill(0.0);
-        if wi.z <= 0.0 || wo.z <= 0.0 {
-            return;
-        }
-        for g in &self.groups {
-            single_pass::eval(self, layers, wi, wo, g.clone(), base, self.eta2, out);
-        }
-    }
-
     pub fn eval(&self, wi: DVec3, wo: DVec3, out: &mut [f64]) {
-        self.eval_layers(&self.layers, wi, wo, &[single_pass::PLAIN_BASE], out);
+        self.walk.eval(self, &self.walk.layers, wi, wo, &[single_pass::PLAIN_BASE], out);
     }
 
     /// Car paint: the base evaluated about a flake normal `flake` smoothed by the viewing `distance`.
     pub fn eval_flake(&self, wi: DVec3, wo: DVec3, flake: DVec3, distance: f64, out: &mut [f64]) {
         let n = (flake + distance.max(1.0) * DVec3::Z).normalize();
-        self.eval_layers(&self.layers, wi, wo, &[Base { normal: Some(n), tint: 1.0 }], out);
+        self.walk.eval(self, &self.walk.layers, wi, wo, &[Base { normal: Some(n), tint: 1.0 }], out);
     }
 }
 
@@ -179,7 +159,7 @@ impl Patina {
         }
         out.fill(0.0);
         if w > 0.0 {
-            let [SpLayer::Dielectric { iface, thickness, sigma_t, albedo }, base] = &self.patina.layers[..] else {
+            let [SpLayer::Dielectric { iface, thickness, sigma_t, albedo }, base] = &self.patina.walk.layers[..] else {
                 unreachable!("checked in Patina::new")
             };
             let lerp = |a: f64, b: f64| a + w * (b - a);
@@ -219,7 +199,7 @@ impl Patina {
                 SpLayer::Dielectric { .. } => unreachable!("checked in Patina::new"),
             };
             let tint: Vec<Base> = self.tint.iter().map(|t| Base { normal: None, tint: lerp(1.0, *t) }).collect();
-            self.patina.eval_layers(&[top, base], wi, wo, &tint, out);
+            self.patina.walk.eval(&self.patina, &[top, base], wi, wo, &tint, out);
         }
         for (o, b) in out.iter_mut().zip(&bare) {
             *o = (1.0 - w) * b + w * *o;
