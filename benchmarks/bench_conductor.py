@@ -65,17 +65,19 @@ def numpy_conductor(wi, wo):
     return geo[:, None] * 0.5 * (rs + rp)
 
 
-def hemisphere(rng, n: int) -> np.ndarray:
-    """n random unit directions with cos θ uniform in [0.05, 1] (float64)."""
-    z = rng.uniform(0.05, 1, n)
-    p = rng.uniform(0, 2 * np.pi, n)
-    s = np.sqrt(1 - z * z)
-    return np.stack([s * np.cos(p), s * np.sin(p), z], -1)
+def main() -> None:
+    rng = np.random.default_rng(1)
 
+    def hemi(n):
+        z = rng.uniform(0.05, 1, n)
+        p = rng.uniform(0, 2 * np.pi, n)
+        s = np.sqrt(1 - z * z)
+        return np.stack([s * np.cos(p), s * np.sin(p), z], -1)
 
-def mitsuba_roughconductor(wi32: np.ndarray, wo32: np.ndarray):
-    """The peer: a function evaluating Mitsuba 3 `llvm_ad_rgb` `roughconductor` (GGX, ALPHA, ETA + iK) on the float32
-    pairs, returning f (Mitsuba's f·cos θ divided by cos θ) as NumPy, conversions included."""
+    wi64, wo64 = hemi(N), hemi(N)
+    wi32, wo32 = wi64.astype(np.float32), wo64.astype(np.float32)
+    stack = lamina.Stack([lamina.Conductor(ETA, K, ALPHA)])
+
     import drjit as dr
     import mitsuba as mi
 
@@ -84,23 +86,11 @@ def mitsuba_roughconductor(wi32: np.ndarray, wo32: np.ndarray):
                          "eta": {"type": "rgb", "value": list(ETA)}, "k": {"type": "rgb", "value": list(K)}})
     ctx = mi.BSDFContext()
 
-    def evaluate():
-        si = dr.zeros(mi.SurfaceInteraction3f, len(wi32))
+    def mitsuba_eval():
+        si = dr.zeros(mi.SurfaceInteraction3f, N)
         si.wi = mi.Vector3f(np.ascontiguousarray(wo32.T))
         value = bsdf.eval(ctx, si, mi.Vector3f(np.ascontiguousarray(wi32.T)))
         return np.array(value).T / wi32[:, 2:3]
-
-    return evaluate
-
-
-def main() -> None:
-    import mitsuba as mi
-
-    rng = np.random.default_rng(1)
-    wi64, wo64 = hemisphere(rng, N), hemisphere(rng, N)
-    wi32, wo32 = wi64.astype(np.float32), wo64.astype(np.float32)
-    stack = lamina.Stack([lamina.Conductor(ETA, K, ALPHA)])
-    mitsuba_eval = mitsuba_roughconductor(wi32, wo32)
 
     rows = measure({
         "lamina float32 in/out": lambda: stack.eval(wi32, wo32, g2="separable"),

@@ -13,7 +13,7 @@ import sys
 import numpy as np
 
 import lamina
-from bench_conductor import hemisphere, measure, mitsuba_roughconductor
+from bench_conductor import measure
 from docs_section import write_section
 
 N = int(os.environ.get("LAMINA_BENCH_N", 1_000_000))
@@ -33,8 +33,23 @@ STACKS = {"2 layers": "rough-coat-rough-copper", "3 layers": "three-layer", "2 l
 
 def main() -> None:
     rng = np.random.default_rng(2)
-    wi, wo = (hemisphere(rng, N).astype(np.float32) for _ in range(2))
-    mitsuba_eval = mitsuba_roughconductor(wi, wo)
+    z = rng.uniform(0.05, 1, (2, N))
+    p = rng.uniform(0, 2 * np.pi, (2, N))
+    s = np.sqrt(1 - z * z)
+    wi, wo = (np.stack([s[i] * np.cos(p[i]), s[i] * np.sin(p[i]), z[i]], -1).astype(np.float32) for i in (0, 1))
+
+    import drjit as dr
+    import mitsuba as mi
+
+    mi.set_variant("llvm_ad_rgb")
+    bsdf = mi.load_dict({"type": "roughconductor", "distribution": "ggx", "alpha": 0.3,
+                         "eta": {"type": "rgb", "value": [0.2, 0.45, 1.4]}, "k": {"type": "rgb", "value": [3.6, 2.5, 1.9]}})
+    ctx = mi.BSDFContext()
+
+    def mitsuba_eval():
+        si = dr.zeros(mi.SurfaceInteraction3f, N)
+        si.wi = mi.Vector3f(np.ascontiguousarray(wo.T))
+        return np.array(bsdf.eval(ctx, si, mi.Vector3f(np.ascontiguousarray(wi.T)))).T / wi[:, 2:3]
 
     fns = {"Mitsuba 3 llvm_ad_rgb roughconductor (one lobe)": mitsuba_eval}
     for stack_label, name in STACKS.items():
