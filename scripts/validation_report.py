@@ -306,11 +306,18 @@ def belcour_section():
             + ". The symmetric variant is reciprocal and also exceeds 1 there."]
     variants = {"reference code (default)": {}, "real cosines in s (paper)": {"cosines": "real"},
                 "J21 in the variance terms (paper)": {"jacobian": "j21"},
-                "exact Fresnel at the mean cosine": {"energy": "fresnel"}, "symmetric (reciprocal)": {"symmetric": True}}
+                "exact Fresnel at the mean cosine": {"energy": "fresnel"}, "symmetric (reciprocal)": {"symmetric": True},
+                "TIR step, reference table E[1 − F] (Fresnel twice)": {"tir": "transmittance"},
+                "TIR step, TIR fraction only": {"tir": "fraction"}}
     names = list(lamina.materials.SUITE)
     out += ["", "### Open questions: paper vs reference code, measured", "",
             "Lobe error (as above) averaged over θi = 0°, 30°, 60°, 80°. The defaults are the variant with the lowest "
-            "mean among the first four (the TIR-table question is not settled yet: no TIR table is implemented).", ""]
+            "mean (the symmetric variant is kept an option: it changes what the statistics depend on). TIR step "
+            "(option `tir`): the reference code's table holds a rough interface's mean transmittance E[1 − F], which "
+            "for a smooth interface is the Fresnel transmission that Ti0 already carries (tested: "
+            "test_reference_tir_table_repeats_the_fresnel_factor), so that step applies Fresnel twice; "
+            "`tir='fraction'` moves only the totally reflected fraction of the visible normals (lamina's table, "
+            "src/tables/steinberg.rs) from Ti0 into Ri0.", ""]
     out += variant_table("belcour", variants, names)
     out += jacobian_rows()
     out += ["", "Reading: the model is exact for a smooth coat over Lambert and close for thin absorbing varnish; it "

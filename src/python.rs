@@ -3,6 +3,7 @@
 //! while the GIL is released. No Rust panic crosses this boundary: bad input becomes ValueError / TypeError.
 
 use crate::bsdf;
+use crate::models::belcour::Tir;
 use crate::models::{self, Options, MODELS};
 use crate::optics::fresnel::{self, FresnelForm};
 use crate::optics::microfacet::{Distribution, G2Form, Microfacet};
@@ -313,6 +314,18 @@ fn parse_options(model: &str, options: Option<&Bound<'_, PyDict>>) -> PyResult<O
             "cosines" => o.belcour.real_cosines = parse_choice("cosines", &text()?, "frozen", "real")?,
             "jacobian" => o.belcour.jacobian_j21 = parse_choice("jacobian", &text()?, "j12", "j21")?,
             "energy" => o.belcour.fresnel_energy = parse_choice("energy", &text()?, "fgd", "fresnel")?,
+            "tir" => {
+                o.belcour.tir = match text()?.as_str() {
+                    "off" => Tir::Off,
+                    "transmittance" => Tir::Transmittance,
+                    "fraction" => Tir::Fraction,
+                    v => {
+                        return Err(PyValueError::new_err(format!(
+                            "tir must be \"off\", \"transmittance\" or \"fraction\", got {v:?}"
+                        )))
+                    }
+                }
+            }
             "tabulated" => o.belcour_table = flag()?,
             "lut" => o.steinberg_fitted = parse_choice("lut", &text()?, "tabulated", "fitted")?,
             "precomputed" => o.elek_precomputed = flag()?,
@@ -321,7 +334,7 @@ fn parse_options(model: &str, options: Option<&Bound<'_, PyDict>>) -> PyResult<O
             _ => {
                 return Err(PyTypeError::new_err(format!(
                     "unknown model option {key:?}; options are distribution, g2, fresnel, symmetric, cosines, \
-                     jacobian, energy, tabulated (belcour), lut (steinberg), precomputed (weidlich_wilkie), \
+                     jacobian, energy, tir, tabulated (belcour), lut (steinberg), precomputed (weidlich_wilkie), \
                      clamp_roughness, eta2 (steinberg, weidlich_wilkie)"
                 )))
             }

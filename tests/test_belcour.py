@@ -75,8 +75,8 @@ def test_total_internal_reflection_layers_stay_finite():
 
 
 @settings(max_examples=15, deadline=None)
-@given(isotropic_stacks, st.floats(0.0, 89.0))
-def test_view_albedo_at_most_one(stack, theta):
+@given(isotropic_stacks, st.floats(0.0, 89.0), st.sampled_from(["off", "transmittance", "fraction"]))
+def test_view_albedo_at_most_one(stack, theta, tir):
     """The statistics follow the viewing direction wo (Belcour's reference code), so the model conserves energy for
     a fixed view: ∫ f(wi, wo) cos θi dωi plus the delta reflection of a smooth top (its lobe-0 energy) <= 1.
     (The light albedo ∫ f cos θo dωo can exceed 1 at grazing incidence: docs/validation.md.) 1e-3: quadrature."""
@@ -88,7 +88,7 @@ def test_view_albedo_at_most_one(stack, theta):
     T, P = np.meshgrid(ti, p, indexing="ij")
     wi = np.stack([np.sin(T) * np.cos(P), np.sin(T) * np.sin(P), np.cos(T)], -1)
     w = (np.cos(T) * np.sin(T))[..., None] * (np.pi / 2 / nt) * (2 * np.pi / npp)
-    view_albedo = np.sum(stack.eval(wi, wo, "belcour") * w, axis=(0, 1))
+    view_albedo = np.sum(stack.eval(wi, wo, "belcour", tir=tir) * w, axis=(0, 1))
     lobes = stack.lobes(wo)
     delta = lobes["energy"][0] if np.all(lobes["roughness"][0] == 0) else 0.0
     assert np.all(view_albedo + delta <= 1 + 1e-3), (view_albedo, delta)
@@ -98,12 +98,27 @@ def test_variant_options():
     stack = lamina.materials.suite("three-layer")
     wi, wo = np.array([0.3, 0.0, 0.95]), np.array([-0.2, 0.1, 0.97])
     base = stack.eval(wi, wo, "belcour")
-    for kw in ({"cosines": "real"}, {"jacobian": "j21"}, {"energy": "fresnel"}):
+    for kw in ({"cosines": "real"}, {"jacobian": "j21"}, {"energy": "fresnel"}, {"tir": "transmittance"},
+               {"tir": "fraction"}):
         f = stack.eval(wi, wo, "belcour", **kw)
         assert np.all(np.isfinite(f)) and not np.array_equal(f, base), kw
-    for kw, match in (({"cosines": "paper"}, "cosines"), ({"jacobian": "J"}, "jacobian"), ({"energy": "x"}, "energy")):
+    for kw, match in (({"cosines": "paper"}, "cosines"), ({"jacobian": "J"}, "jacobian"), ({"energy": "x"}, "energy"),
+                      ({"tir": "on"}, "tir")):
         with pytest.raises(ValueError, match=match):
             stack.eval(wi, wo, "belcour", **kw)
+
+
+def test_reference_tir_table_repeats_the_fresnel_factor():
+    """The reference code's TIR table holds a rough interface's mean transmittance E[1 − F] (lamina's Steinberg table
+    at η < 1). For a smooth interface it is 1 − F(μ, 1/η) at every cosine μ that light refracted from outside can have
+    inside the coat, i.e. exactly the Fresnel transmission T21 that Ti0 already carries: the step counts Fresnel
+    twice (option tir='transmittance'), while the TIR fraction (tir='fraction') is 0 there."""
+    eta = 1 / (0.25 * 16 ** (17 / 47))  # ≈ 1.47: a node of the table's log-η axis, as are the cosines below (f32 table)
+    mu = np.arange(48, 63) / 63  # above the critical cosine √(1 − 1/η²) = 0.731
+    t = lamina.optics.steinberg_lut(mu, 0.0, 1 / eta)[..., 0]
+    np.testing.assert_allclose(t, 1 - lamina.optics.fresnel_dielectric(mu, 1 / eta), rtol=1e-6)
+    theta_out = np.arcsin(eta * np.sqrt(1 - mu**2))  # the outside directions that refract to mu
+    np.testing.assert_allclose(t, 1 - lamina.optics.fresnel_dielectric(np.cos(theta_out), eta), rtol=1e-6)
 
 
 def aniso_pairs(rng, n):

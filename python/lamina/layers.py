@@ -140,6 +140,8 @@ class Stack:
           model="weidlich_wilkie" defaults to Beckmann with the V-cavity G (Torrance–Sparrow).
         - "belcour": `symmetric` (the reciprocal variant); where paper and reference code differ, `cosines`
           'frozen' (code) | 'real' (paper), `jacobian` 'j12' (code) | 'j21' (paper), `energy` 'fgd' | 'fresnel';
+          the code's optional TIR step, `tir` 'off' (default) | 'transmittance' (the code's table, which repeats the
+          Fresnel factor) | 'fraction' (only the totally reflected fraction);
           `tabulated` (default True) interpolates the adding-doubling from a per-call table over cos θ.
         - "steinberg": `lut` 'tabulated' (default) | 'fitted' (the article's closed forms).
         - "steinberg" and "weidlich_wilkie": `clamp_roughness` (Elek's m₂ ≥ m₁, default True) and `eta2` (the

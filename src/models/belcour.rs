@@ -146,6 +146,23 @@ pub struct Variant {
     pub jacobian_j21: bool,
     /// Energies from the exact Fresnel at the mean cosine instead of the FGD table.
     pub fresnel_energy: bool,
+    /// The reference code's TIR step before each interface below the first.
+    pub tir: Tir,
+}
+
+/// Belcour's optional TIR step (reference code, "decoupling approximation"): before interface i > 0, a factor T of
+/// the energy Ti0 that goes back up through interface i − 1 (cosine cti below it, roughness of the lobe, relative
+/// IOR η < 1 going up) is moved into Ri0: Ri0 += (1 − T) Ti0, Ti0 ← T Ti0.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum Tir {
+    /// No TIR step.
+    #[default]
+    Off,
+    /// T = the rough interface's mean transmittance E[1 − F] (what the reference code's table holds): the Fresnel
+    /// factor already in Ti0 is applied a second time.
+    Transmittance,
+    /// T = 1 − the fraction of visible normals that totally reflect: only the TIR itself.
+    Fraction,
 }
 
 enum Step {
@@ -418,6 +435,8 @@ impl Prepared {
         };
         let mut cti = cos_theta.clamp(1e-4, 1.0);
         let mut lobes = Vec::new();
+        // Mean relative IOR of the last interface crossed (below / above), for the TIR step.
+        let mut eta_above: Option<f64> = None;
         for step in &self.steps {
             match step {
                 Step::Interface { eta, kappa, alpha: (ax, ay), angle, conductor } => {
@@ -446,6 +465,17 @@ impl Prepared {
                     // FGD at the roughness, along the viewing azimuth, of the incoming lobe convolved with the
                     // interface.
                     let temp_alpha = alpha_from_variance((s.s_t0i + s_r12).along(cos_phi, sin_phi));
+                    if let Some(up) = eta_above.filter(|_| self.variant.tir != Tir::Off) {
+                        let table = tables::steinberg::steinberg();
+                        let t = match self.variant.tir {
+                            Tir::Transmittance => table.tabulated(cti, temp_alpha, 1.0 / up).0,
+                            _ => 1.0 - table.tir_fraction(cti, temp_alpha, 1.0 / up),
+                        };
+                        for (r, ti) in s.ri0.iter_mut().zip(s.ti0.iter_mut()) {
+                            *r = (*r + (1.0 - t) * *ti).clamp(0.0, 1.0);
+                            *ti *= t;
+                        }
+                    }
                     let r12: Vec<f64> = (0..c)
                         .map(|k| {
                             if temp_alpha == 0.0 || self.variant.fresnel_energy {
@@ -466,6 +496,7 @@ impl Prepared {
                         return (lobes, s);
                     }
                     cti = ctt;
+                    eta_above = Some(n12);
                 }
                 Step::Medium { thickness, sigma_a, sigma_s, g } => {
                     let t: Vec<f64> = (0..c)

@@ -1,12 +1,14 @@
 //! Steinberg's two integrals without closed form, for one rough GGX dielectric interface seen from above along a
-//! direction v of cosine μ, relative IOR η (below / above) and roughness α:
+//! direction v of cosine μ, relative IOR η (below / above) and roughness α (plus the TIR fraction that Belcour's TIR
+//! step takes, tabulated with them since it integrates over the same visible normals):
 //! - t(μ, α, η): the mean Fresnel transmission over the microfacets visible from v, E_{m∼D_v}[1 − F(v·m, η)];
 //! - s(μ, α, η): the sine of the mean refracted direction, normalize(E_{m∼D_v}[refract(v, m)]) over the
 //!   refractions that go down (total internal reflections and refractions that leave the macro-surface are
-//!   discarded); it lies in the plane of incidence, opposite to v. When nothing refracts, s = 1 (and t ≈ 0).
+//!   discarded); it lies in the plane of incidence, opposite to v. When nothing refracts, s = 1 (and t ≈ 0);
+//! - p(μ, α, η): the fraction of visible normals at which v is totally internally reflected (η < 1 only).
 //!
 //! Tabulated form: μ uniform in [0, 1] (64 nodes), α uniform in [0, 1] (32), η log-uniform in [1/4, 4] (48),
-//! 512 stratified visible normals per (μ, α); trilinear interpolation of t and of s / sin θ (constant, 1/η, for a
+//! 512 stratified visible normals per (μ, α); trilinear interpolation of t, p and of s / sin θ (constant, 1/η, for a
 //! smooth interface, so that interpolation keeps Snell's law exact; interpolating s itself lets the view-to-slab map
 //! deviate from Snell near μ = 1, where it is steep, and the albedo of a smooth coat then exceeds 1). Fitted form (Steinberg's article): per
 //! (α, η) node, t ≈ m((erf(aμ − b) + 1) + cμ) + d (0 ≤ c, m ≤ 1) and s ≈ a₁e^{a₂μ} + b₁e^{b₂μ}, fitted to the
@@ -27,7 +29,9 @@ pub const N_ETA: usize = 48;
 pub const ETA_MIN: f64 = 0.25;
 pub const ETA_MAX: f64 = 4.0;
 const QUADRATURE: usize = 512;
-const VERSION: u32 = 3;
+const VERSION: u32 = 4;
+/// Values per table node: t, s / sin θ, p.
+const STRIDE: usize = 3;
 const T_PARAMS: usize = 5;
 const S_PARAMS: usize = 4;
 
@@ -47,25 +51,27 @@ fn eta_coord(eta: f64) -> f64 {
     (eta / ETA_MIN).ln() / (ETA_MAX / ETA_MIN).ln()
 }
 
-/// t and s of one (μ, α, η) by quadrature over `normals` (the visible normals from v), or exactly for a smooth
+/// t, s and p of one (μ, α, η) by quadrature over `normals` (the visible normals from v), or exactly for a smooth
 /// interface (Fresnel and Snell).
-fn integrate(v: DVec3, normals: &[DVec3], eta: f64) -> (f64, f64) {
+fn integrate(v: DVec3, normals: &[DVec3], eta: f64) -> (f64, f64, f64) {
     if normals.is_empty() {
         let sin_t = (1.0 - v.z * v.z).sqrt() / eta;
-        return (1.0 - fresnel::dielectric(v.z, eta), sin_t.min(1.0));
+        return (1.0 - fresnel::dielectric(v.z, eta), sin_t.min(1.0), (sin_t > 1.0) as u8 as f64);
     }
-    let mut t = 0.0;
+    let (mut t, mut p) = (0.0, 0.0);
     let mut mean = DVec3::ZERO;
     for &m in normals {
         t += 1.0 - fresnel::dielectric(v.dot(m), eta);
-        if let Some(d) = refract(v, m, eta).filter(|d| d.z < 0.0) {
-            mean += d;
+        match refract(v, m, eta) {
+            None => p += 1.0,
+            Some(d) if d.z < 0.0 => mean += d,
+            Some(_) => {}
         }
     }
-    let t = t / normals.len() as f64;
+    let n = normals.len() as f64;
     let len = mean.length();
     let s = if len > 0.0 { (mean.x.hypot(mean.y) / len).min(1.0) } else { 1.0 };
-    (t, s)
+    (t / n, s, p / n)
 }
 
 /// Transmission model m((erf(aμ − b) + 1) + cμ) + d, parameters (a, b, c, d, m).
@@ -79,7 +85,7 @@ pub fn s_model(p: &[f64; S_PARAMS], mu: f64) -> f64 {
 }
 
 pub struct Steinberg {
-    /// [μ][α][η][t, s / sin θ]
+    /// [μ][α][η][t, s / sin θ, p]
     table: Vec<f32>,
     /// [α][η][a, b, c, d, m, a₁, a₂, b₁, b₂]
     fits: Vec<f32>,
@@ -98,15 +104,15 @@ impl Steinberg {
                     visible_normals(&Microfacet::new(Distribution::Ggx, alpha, alpha, 0.0), v, QUADRATURE)
                 };
                 (0..N_ETA).flat_map(move |e| {
-                    let (t, s) = integrate(v, &normals, eta_at(e));
-                    [t as f32, (s / v.x) as f32]
+                    let (t, s, p) = integrate(v, &normals, eta_at(e));
+                    [t as f32, (s / v.x) as f32, p as f32]
                 })
             })
             .collect();
         // At μ = 1 the ratio s / sin θ is 0/0 (and quadrature noise over a vanishing sine): take its limit from the
         // neighbouring node (s / sin θ is even in θ, so the error is O(θ²)).
-        let row = N_ALPHA * N_ETA * 2;
-        for k in (1..row).step_by(2) {
+        let row = N_ALPHA * N_ETA * STRIDE;
+        for k in (1..row).step_by(STRIDE) {
             table[(N_MU - 1) * row + k] = table[(N_MU - 2) * row + k];
         }
         table
@@ -131,7 +137,7 @@ impl Steinberg {
         let (wt, ws) = (edge(1.0, 100.0), edge(1.0, 10.0));
         let column = |a: usize, e: usize, k: usize| -> Vec<f64> {
             let sin = |m: usize| if k == 1 { (1.0 - mu_at(m).powi(2)).sqrt() } else { 1.0 };
-            (0..N_MU).map(|m| table[((m * N_ALPHA + a) * N_ETA + e) * 2 + k] as f64 * sin(m)).collect()
+            (0..N_MU).map(|m| table[((m * N_ALPHA + a) * N_ETA + e) * STRIDE + k] as f64 * sin(m)).collect()
         };
         let per_eta: Vec<Vec<f32>> = (0..N_ETA)
             .into_par_iter()
@@ -185,23 +191,35 @@ impl Steinberg {
         fits
     }
 
-    /// (t, s) from the table, trilinear in (μ, α, log η) (s through s / sin θ).
-    pub fn tabulated(&self, mu: f64, alpha: f64, eta: f64) -> (f64, f64) {
+    /// Trilinear interpolation in (μ, α, log η) of the node values [t, s / sin θ, p].
+    fn interpolate(&self, mu: f64, alpha: f64, eta: f64) -> [f64; STRIDE] {
         let (i, fi) = node(mu, N_MU);
         let (j, fj) = node(alpha, N_ALPHA);
         let (k, fk) = node(eta_coord(eta), N_ETA);
-        let (mut t, mut s) = (0.0, 0.0);
+        let mut v = [0.0; STRIDE];
         for (di, wi) in [(0, 1.0 - fi), (1, fi)] {
             for (dj, wj) in [(0, 1.0 - fj), (1, fj)] {
                 for (dk, wk) in [(0, 1.0 - fk), (1, fk)] {
                     let w = wi * wj * wk;
-                    let idx = (((i + di) * N_ALPHA + j + dj) * N_ETA + k + dk) * 2;
-                    t += w * self.table[idx] as f64;
-                    s += w * self.table[idx + 1] as f64;
+                    let idx = (((i + di) * N_ALPHA + j + dj) * N_ETA + k + dk) * STRIDE;
+                    for (x, &y) in v.iter_mut().zip(&self.table[idx..idx + STRIDE]) {
+                        *x += w * y as f64;
+                    }
                 }
             }
         }
+        v
+    }
+
+    /// (t, s) from the table (s through s / sin θ).
+    pub fn tabulated(&self, mu: f64, alpha: f64, eta: f64) -> (f64, f64) {
+        let [t, s, _] = self.interpolate(mu, alpha, eta);
         (t, (s * (1.0 - mu * mu).max(0.0).sqrt()).min(1.0))
+    }
+
+    /// p: the fraction of the visible normals at which the direction is totally internally reflected.
+    pub fn tir_fraction(&self, mu: f64, alpha: f64, eta: f64) -> f64 {
+        self.interpolate(mu, alpha, eta)[2].clamp(0.0, 1.0)
     }
 
     /// (t, s) from the fitted closed forms, bilinear in (α, log η) between the fitted nodes, clamped to [0, 1].
@@ -230,7 +248,7 @@ pub fn steinberg() -> &'static Steinberg {
     TABLE.get_or_init(|| {
         let dims = format!("{N_MU}x{N_ALPHA}x{N_ETA}");
         let table =
-            cached(&format!("steinberg-v{VERSION}-{dims}.f32"), N_MU * N_ALPHA * N_ETA * 2, Steinberg::generate_table);
+            cached(&format!("steinberg-v{VERSION}-{dims}.f32"), N_MU * N_ALPHA * N_ETA * STRIDE, Steinberg::generate_table);
         let fits =
             cached(&format!("steinberg-fit-v{VERSION}-{dims}.f32"), N_ALPHA * N_ETA * (T_PARAMS + S_PARAMS), || {
                 Steinberg::generate_fits(&table)
@@ -253,12 +271,30 @@ mod tests {
     }
 
     #[test]
+    fn tir_fraction_is_the_critical_angle_step_when_smooth_and_matches_a_fine_quadrature_when_rough() {
+        let t = steinberg();
+        let eta = eta_at(10); // < 1: leaving a denser medium
+        let mu_c = (1.0 - eta * eta).sqrt();
+        for m in [10, 30, 50, 63] {
+            let mu = mu_at(m);
+            assert_eq!(t.tir_fraction(mu, 0.0, eta), if mu < mu_c { 1.0 } else { 0.0 }, "μ = {mu}");
+        }
+        assert_eq!(t.tir_fraction(0.3, 0.6, 1.5), 0.0);
+        let (mu, alpha, eta) = (0.8, 0.45, 0.7);
+        let v = DVec3::new((1.0f64 - mu * mu).sqrt(), 0.0, mu);
+        let normals = visible_normals(&Microfacet::new(Distribution::Ggx, alpha, alpha, 0.0), v, 65536);
+        let p_ref = integrate(v, &normals, eta).2;
+        let p = t.tir_fraction(mu, alpha, eta);
+        assert!(p_ref > 0.05 && (p - p_ref).abs() < 5e-3, "{p} {p_ref}");
+    }
+
+    #[test]
     fn matches_a_fine_quadrature_between_nodes() {
         // η = 1.5, α = 0.5, μ = 0.5: t and s from 65536 visible normals.
         let (mu, alpha, eta) = (0.5, 0.5, 1.5);
         let v = DVec3::new((1.0f64 - mu * mu).sqrt(), 0.0, mu);
         let normals = visible_normals(&Microfacet::new(Distribution::Ggx, alpha, alpha, 0.0), v, 65536);
-        let (t_ref, s_ref) = integrate(v, &normals, eta);
+        let (t_ref, s_ref, _) = integrate(v, &normals, eta);
         let (t, s) = steinberg().tabulated(mu, alpha, eta);
         assert!((t - t_ref).abs() < 3e-3 && (s - s_ref).abs() < 3e-3, "{t} {t_ref} {s} {s_ref}");
     }
