@@ -8,17 +8,14 @@ use glam::DVec3;
 
 /// Microfacet reflection without the Fresnel factor: D(h) G2 / (4 |cos θi| |cos θo|) and the cosine wi·h that
 /// the Fresnel factor takes (Cook–Torrance 1982; Walter et al. 2007 eq. 20). Same-side directions only.
+#[inline(always)]
 pub fn reflection_geometry(mf: &Microfacet, form: G2Form, wi: DVec3, wo: DVec3) -> Option<(f64, f64)> {
-    if wi.z * wo.z <= 0.0 || mf.is_smooth() {
-        return None;
-    }
+    // Computed first and selected last (no early return), so that loops over it vectorize.
     let h = (wi + wo).normalize();
     let h = if h.z < 0.0 { -h } else { h };
     let g = mf.g2(form, wi, wo, h);
-    if g == 0.0 {
-        return None;
-    }
-    Some((mf.d(h) * g / (4.0 * (wi.z * wo.z).abs()), wi.dot(h)))
+    let geo = mf.d(h) * g / (4.0 * (wi.z * wo.z).abs());
+    (wi.z * wo.z > 0.0 && !mf.is_smooth() && g != 0.0).then_some((geo, wi.dot(h)))
 }
 
 /// Rough conductor BRDF F(wi·h) D G2 / (4 cos θi cos θo) with the exact conductor Fresnel of η + iκ.

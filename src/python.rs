@@ -4,7 +4,7 @@
 
 use crate::bsdf;
 use crate::models::belcour::Tir;
-use crate::models::{self, Options, MODELS};
+use crate::models::{self, Options, BLOCK, MODELS};
 use crate::optics::fresnel::{self, FresnelForm};
 use crate::optics::microfacet::{Distribution, G2Form, Microfacet};
 use crate::reference;
@@ -48,12 +48,20 @@ enum Data<'a> {
 }
 
 impl Data<'_> {
-    #[inline]
-    fn get(&self, i: usize) -> f64 {
+    /// Rows start..start + len of this (..., w) input into the columns cols[0..w][0..len].
+    fn gather(&self, w: usize, start: usize, len: usize, cols: &mut [[f64; BLOCK]; MAX_WIDTH]) {
+        fn transpose<T: Copy + Into<f64>>(src: &[T], w: usize, cols: &mut [[f64; BLOCK]; MAX_WIDTH]) {
+            for (r, row) in src.chunks_exact(w).enumerate() {
+                for (c, &x) in row.iter().enumerate() {
+                    cols[c][r] = x.into();
+                }
+            }
+        }
+        let range = start * w..(start + len) * w;
         match self {
-            Data::F64(s) => s[i],
-            Data::F32(s) => s[i] as f64,
-            Data::Copied(v) => v[i],
+            Data::F64(s) => transpose(&s[range], w, cols),
+            Data::F32(s) => transpose(&s[range], w, cols),
+            Data::Copied(v) => transpose(&v[range], w, cols),
         }
     }
 }
@@ -64,18 +72,83 @@ const MAX_WIDTH: usize = 3;
 const MAX_INPUTS: usize = 4;
 type Row = [f64; MAX_WIDTH];
 
+/// One block of at most BLOCK rows, gathered into columns (structure of arrays): component c of input j in row r
+/// is cols[j][c][r]. Directions are normalised.
+struct Block {
+    len: usize,
+    cols: [[[f64; BLOCK]; MAX_WIDTH]; MAX_INPUTS],
+}
+
+impl Block {
+    /// The columns of input j, each of length `len`.
+    fn columns(&self, j: usize) -> [&[f64]; MAX_WIDTH] {
+        std::array::from_fn(|c| &self.cols[j][c][..self.len])
+    }
+
+    /// Checks and normalises input j (width w) in place; the first bad row as (row, zero-length), if any. The loops
+    /// are branch-free so that they vectorize (with AVX2 when the CPU has it); a block with a bad row is scanned
+    /// again to find it.
+    fn validate(&mut self, j: usize, kind: Kind) -> Option<(usize, bool)> {
+        #[cfg(target_arch = "x86_64")]
+        if models::has_avx2() {
+            // SAFETY: the CPU supports every feature the function is compiled for.
+            return unsafe { self.validate_avx2(j, kind) };
+        }
+        self.validate_portable(j, kind)
+    }
+
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2,fma")]
+    unsafe fn validate_avx2(&mut self, j: usize, kind: Kind) -> Option<(usize, bool)> {
+        self.validate_portable(j, kind)
+    }
+
+    #[inline(always)]
+    fn validate_portable(&mut self, j: usize, kind: Kind) -> Option<(usize, bool)> {
+        let (w, n) = (kind.width(), self.len);
+        let cols = &mut self.cols[j];
+        // Columns sliced to the row count: no bounds checks in the loops, which lets them vectorize.
+        let bad = match kind {
+            Kind::Direction => {
+                let [x, y, z] = cols.each_mut().map(|c| &mut c[..n]);
+                let mut bad = false;
+                for r in 0..n {
+                    let len2 = x[r] * x[r] + y[r] * y[r] + z[r] * z[r];
+                    bad |= (x[r] + y[r] + z[r]) * 0.0 != 0.0 || len2 == 0.0; // NaN·0 and ±Inf·0 are NaN
+                }
+                if !bad {
+                    for r in 0..n {
+                        let inv = 1.0 / (x[r] * x[r] + y[r] * y[r] + z[r] * z[r]).sqrt();
+                        (x[r], y[r], z[r]) = (x[r] * inv, y[r] * inv, z[r] * inv);
+                    }
+                }
+                bad
+            }
+            Kind::Values(_) => cols[..w].iter().any(|c| c[..n].iter().fold(0.0, |acc, x| acc + x * 0.0) != 0.0),
+        };
+        if !bad {
+            return None;
+        }
+        (0..self.len).find_map(|r| {
+            let finite = cols[..w].iter().all(|col| col[r].is_finite());
+            (!finite || cols[..w].iter().all(|col| col[r] == 0.0)).then_some((r, finite))
+        })
+    }
+}
+
 /// No input row was rejected. A rejection is encoded as (row · MAX_INPUTS + input) · 2 + reason, reason 0 for
 /// NaN/Inf and 1 for a zero-length direction, so that the smallest code is the first bad row.
 const NO_ERROR: usize = usize::MAX;
 
-/// Evaluates `kernel` on every row of the (already broadcast) inputs, in parallel with the GIL released, writing
-/// straight into a new NumPy array of shape batch + (out_k,): float32 when every input is float32, else float64.
-/// Rows are validated on the way (NaN/Inf, zero-length directions) and the first bad one raises ValueError.
-fn batch<'py>(
+/// Evaluates `kernel` on every block of rows of the (already broadcast) inputs, in parallel with the GIL released,
+/// writing straight into a new NumPy array of shape batch + (out_k,): float32 when every input is float32, else
+/// float64. The kernel receives a block and its zeroed output, rows of out_k values in f64. Rows are validated on
+/// the way (NaN/Inf, zero-length directions) and the first bad one raises ValueError.
+fn batch_blocks<'py>(
     py: Python<'py>,
     inputs: &[(&str, &Bound<'py, PyAny>, Kind)],
     out_k: usize,
-    kernel: impl Fn(&[Row], &mut [f64]) + Sync,
+    kernel: impl Fn(&Block, &mut [f64]) + Sync,
 ) -> PyResult<Bound<'py, PyAny>> {
     assert!(inputs.len() <= MAX_INPUTS && out_k > 0);
     let (mut f64s, mut f32s) = (Vec::new(), Vec::new());
@@ -135,36 +208,25 @@ fn batch<'py>(
     let mut shape = batch_shape;
     shape.push(out_k);
     let first_bad = AtomicUsize::new(NO_ERROR);
-    let eval_row = |i: usize, o: &mut [f64]| {
-        let mut rows = [[0.0; MAX_WIDTH]; MAX_INPUTS];
-        for (j, (d, kind)) in data.iter().zip(&kinds).enumerate() {
-            let w = kind.width();
-            let row = &mut rows[j];
-            for (c, x) in row[..w].iter_mut().enumerate() {
-                *x = d.get(i * w + c);
-            }
-            let finite = row[..w].iter().all(|x| x.is_finite());
-            let len = (row[0] * row[0] + row[1] * row[1] + row[2] * row[2]).sqrt();
-            if !finite || (*kind == Kind::Direction && len == 0.0) {
-                first_bad.fetch_min((i * MAX_INPUTS + j) * 2 + finite as usize, Ordering::Relaxed);
+    let eval_block = |start: usize, block: &mut Block, out: &mut [f64]| {
+        for (j, (d, &kind)) in data.iter().zip(&kinds).enumerate() {
+            d.gather(kind.width(), start, block.len, &mut block.cols[j]);
+            if let Some((r, zero_length)) = block.validate(j, kind) {
+                first_bad.fetch_min(((start + r) * MAX_INPUTS + j) * 2 + zero_length as usize, Ordering::Relaxed);
                 return;
             }
-            if *kind == Kind::Direction {
-                let inv = 1.0 / len;
-                row.iter_mut().for_each(|x| *x *= inv);
-            }
         }
-        kernel(&rows[..data.len()], o);
+        kernel(block, out);
     };
     let result = if f64s.is_empty() {
         let array = unsafe { PyArrayDyn::<f32>::new(py, IxDyn(&shape), false) };
         let slice = unsafe { array.as_slice_mut() }.expect("new arrays are contiguous");
-        py.detach(|| fill(slice, out_k, &eval_row));
+        py.detach(|| fill(slice, out_k, &eval_block));
         array.into_any()
     } else {
         let array = unsafe { PyArrayDyn::<f64>::new(py, IxDyn(&shape), false) };
         let slice = unsafe { array.as_slice_mut() }.expect("new arrays are contiguous");
-        py.detach(|| fill(slice, out_k, &eval_row));
+        py.detach(|| fill(slice, out_k, &eval_block));
         array.into_any()
     };
     let bad = first_bad.into_inner();
@@ -174,6 +236,22 @@ fn batch<'py>(
         return Err(PyValueError::new_err(format!("{} contains {what} (row {row} of {n})", inputs[j].0)));
     }
     Ok(result)
+}
+
+/// `batch_blocks` for a kernel of one row: `kernel(rows, out)` with rows[j] the (normalised) row of input j.
+fn batch<'py>(
+    py: Python<'py>,
+    inputs: &[(&str, &Bound<'py, PyAny>, Kind)],
+    out_k: usize,
+    kernel: impl Fn(&[Row], &mut [f64]) + Sync,
+) -> PyResult<Bound<'py, PyAny>> {
+    let m = inputs.len();
+    batch_blocks(py, inputs, out_k, |b, out| {
+        for (r, o) in out.chunks_exact_mut(out_k).enumerate() {
+            let rows: [Row; MAX_INPUTS] = std::array::from_fn(|j| std::array::from_fn(|c| b.cols[j][c][r]));
+            kernel(&rows[..m], o);
+        }
+    })
 }
 
 /// Output element types.
@@ -193,13 +271,16 @@ impl OutElement for f32 {
     }
 }
 
-/// Fills `out` (rows of `out_k`) in parallel, evaluating `f(row, scratch)` in f64 and storing as T.
-fn fill<T: OutElement>(out: &mut [T], out_k: usize, f: &(dyn Fn(usize, &mut [f64]) + Sync)) {
-    out.par_chunks_mut(out_k).enumerate().with_min_len(1024).for_each_init(
-        || vec![0.0f64; out_k],
-        |scratch, (i, o)| {
+/// Fills `out` (rows of `out_k`) in parallel, a block of BLOCK rows at a time: `f(first row, block, scratch)`
+/// evaluates the block in f64 into the zeroed scratch, which is then stored as T.
+fn fill<T: OutElement>(out: &mut [T], out_k: usize, f: &(dyn Fn(usize, &mut Block, &mut [f64]) + Sync)) {
+    out.par_chunks_mut(BLOCK * out_k).enumerate().with_min_len(4).for_each_init(
+        || (Box::new(Block { len: 0, cols: [[[0.0; BLOCK]; MAX_WIDTH]; MAX_INPUTS] }), vec![0.0f64; BLOCK * out_k]),
+        |(block, scratch), (b, o)| {
+            block.len = o.len() / out_k;
+            let scratch = &mut scratch[..o.len()];
             scratch.fill(0.0);
-            f(i, scratch);
+            f(b * BLOCK, block, scratch);
             for (dst, &src) in o.iter_mut().zip(scratch.iter()) {
                 *dst = T::from_f64(src);
             }
@@ -364,7 +445,9 @@ fn eval_stack<'py>(
     let prepared = models::prepare(model, &stack, &opts)?;
     let dirs = [("wi", wi, Kind::Direction), ("wo", wo, Kind::Direction)];
     match (flake_normal, distance, &prepared) {
-        (None, None, _) => batch(py, &dirs, stack.channels, |r, o| prepared.eval(vec3(&r[0]), vec3(&r[1]), o)),
+        (None, None, _) => {
+            batch_blocks(py, &dirs, stack.channels, |b, o| prepared.eval_block(b.columns(0), b.columns(1), o))
+        }
         (Some(flake), Some(dist), models::Evaluator::WeidlichWilkie(p)) => batch(
             py,
             &[dirs[0], dirs[1], ("flake_normal", flake, Kind::Values(3)), ("distance", dist, Kind::Values(1))],

@@ -4,6 +4,7 @@
 /// Exact unpolarized dielectric Fresnel reflectance (Born & Wolf §1.5). `cos_i` is the cosine of the incident
 /// direction with the normal on the side of the incidence; a negative `cos_i` means incidence from inside, where
 /// the relative IOR becomes 1/`eta`. `eta` = η_inside / η_outside. Returns 1 under total internal reflection.
+#[inline(always)]
 pub fn dielectric(cos_i: f64, eta: f64) -> f64 {
     let (cos_i, eta) = if cos_i < 0.0 { (-cos_i, 1.0 / eta) } else { (cos_i, eta) };
     let cos_i = cos_i.min(1.0);
@@ -19,6 +20,7 @@ pub fn dielectric(cos_i: f64, eta: f64) -> f64 {
 
 /// Exact unpolarized conductor Fresnel reflectance for the relative complex IOR `eta` + i`k`
 /// (closed form of the Fresnel equations, e.g. Lagarde 2013 / Born & Wolf §14.2). `cos_i` in [0, 1].
+#[inline(always)]
 pub fn conductor(cos_i: f64, eta: f64, k: f64) -> f64 {
     let cos_i = cos_i.clamp(0.0, 1.0);
     let cos2 = cos_i * cos_i;
@@ -34,17 +36,20 @@ pub fn conductor(cos_i: f64, eta: f64, k: f64) -> f64 {
 }
 
 /// Reflectance at normal incidence of a relative complex IOR `eta` + i`k`.
+#[inline(always)]
 pub fn f0(eta: f64, k: f64) -> f64 {
     ((eta - 1.0).powi(2) + k * k) / ((eta + 1.0).powi(2) + k * k)
 }
 
 /// Schlick 1994 approximation F0 + (1 − F0)(1 − cos θ)^5.
+#[inline(always)]
 pub fn schlick(cos_i: f64, f0: f64) -> f64 {
     f0 + (1.0 - f0) * (1.0 - cos_i.clamp(0.0, 1.0)).powi(5)
 }
 
 /// Lazányi & Szirmay-Kalos 2005, "Fresnel term approximations for metals" (the rescaled Schlick form used by
 /// Elek 2010): [(η−1)² + 4η(1−cos θ)^5 + κ²] / [(η+1)² + κ²].
+#[inline(always)]
 pub fn lazanyi(cos_i: f64, eta: f64, k: f64) -> f64 {
     let m = (1.0 - cos_i.clamp(0.0, 1.0)).powi(5);
     ((eta - 1.0).powi(2) + 4.0 * eta * m + k * k) / ((eta + 1.0).powi(2) + k * k)

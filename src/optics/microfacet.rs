@@ -53,10 +53,8 @@ impl Microfacet {
         self.smooth
     }
 
+    #[inline(always)]
     fn tangent(&self, w: DVec3) -> DVec3 {
-        if self.sin_phi == 0.0 && self.cos_phi == 1.0 {
-            return w;
-        }
         to_tangent_frame(w, self.cos_phi, self.sin_phi)
     }
 
@@ -65,20 +63,24 @@ impl Microfacet {
     }
 
     /// Normal distribution D(m) (Walter et al. 2007 eq. 33 for GGX, eq. 25 for Beckmann; anisotropic form of
-    /// Heitz 2014 eq. 85/86). Zero for m below the horizon.
+    /// Heitz 2014 eq. 85/86). Zero for m below the horizon. (This and the masking functions below compute first and
+    /// select last, without early returns, so that loops over them vectorize.)
+    #[inline(always)]
     pub fn d(&self, m: DVec3) -> f64 {
         let m = self.tangent(m);
-        if m.z <= 0.0 {
-            return 0.0;
-        }
         let (x, y) = (m.x / self.alpha_x, m.y / self.alpha_y);
         let z2 = m.z * m.z;
-        match self.dist {
+        let d = match self.dist {
             Distribution::Ggx => {
                 let s = x * x + y * y + z2;
                 1.0 / (PI * self.alpha_x * self.alpha_y * s * s)
             }
             Distribution::Beckmann => (-(x * x + y * y) / z2).exp() / (PI * self.alpha_x * self.alpha_y * z2 * z2),
+        };
+        if m.z > 0.0 {
+            d
+        } else {
+            0.0
         }
     }
 
@@ -94,13 +96,11 @@ impl Microfacet {
     }
 
     /// Smith Λ(w) of the distribution (Heitz 2014 eq. 72 for GGX, eq. 69 for Beckmann), using the projected
-    /// roughness α(φ) along the azimuth of w.
+    /// roughness α(φ) along the azimuth of w. Both forms give 0 for α tan θ = 0 and ∞ for α tan θ = ∞ (grazing).
+    #[inline(always)]
     pub fn lambda(&self, w: DVec3) -> f64 {
         let w = self.tangent(w);
         let alpha_tan2 = ((w.x * self.alpha_x).powi(2) + (w.y * self.alpha_y).powi(2)) / (w.z * w.z);
-        if alpha_tan2 == 0.0 || !alpha_tan2.is_finite() {
-            return if alpha_tan2 == 0.0 { 0.0 } else { f64::INFINITY };
-        }
         match self.dist {
             Distribution::Ggx => 0.5 * ((1.0 + alpha_tan2).sqrt() - 1.0),
             Distribution::Beckmann => {
@@ -111,27 +111,35 @@ impl Microfacet {
     }
 
     /// Smith masking G1(w, m) = χ⁺((w·m)/(w·n)) / (1 + Λ(w)) (Heitz 2014 eq. 43).
+    #[inline(always)]
     pub fn g1(&self, w: DVec3, m: DVec3) -> f64 {
-        if w.dot(m) * w.z <= 0.0 {
-            return 0.0;
+        let g = 1.0 / (1.0 + self.lambda(w));
+        if w.dot(m) * w.z > 0.0 {
+            g
+        } else {
+            0.0
         }
-        1.0 / (1.0 + self.lambda(w))
     }
 
     /// Separable Smith masking-shadowing G1(wi) G1(wo) (Heitz 2014 eq. 98; what Mitsuba 3 uses).
+    #[inline(always)]
     pub fn g2_separable(&self, wi: DVec3, wo: DVec3, m: DVec3) -> f64 {
         self.g1(wi, m) * self.g1(wo, m)
     }
 
     /// Height-correlated Smith masking-shadowing 1 / (1 + Λ(wi) + Λ(wo)) (Heitz 2014 eq. 99; pbrt-v4).
+    #[inline(always)]
     pub fn g2_height_correlated(&self, wi: DVec3, wo: DVec3, m: DVec3) -> f64 {
-        if wi.dot(m) * wi.z <= 0.0 || wo.dot(m) * wo.z <= 0.0 {
-            return 0.0;
+        let g = 1.0 / (1.0 + self.lambda(wi) + self.lambda(wo));
+        if wi.dot(m) * wi.z > 0.0 && wo.dot(m) * wo.z > 0.0 {
+            g
+        } else {
+            0.0
         }
-        1.0 / (1.0 + self.lambda(wi) + self.lambda(wo))
     }
 
     /// Masking-shadowing of the chosen form.
+    #[inline(always)]
     pub fn g2(&self, form: G2Form, wi: DVec3, wo: DVec3, m: DVec3) -> f64 {
         match form {
             G2Form::Separable => self.g2_separable(wi, wo, m),
@@ -187,6 +195,7 @@ pub enum G2Form {
 
 /// V-cavity masking-shadowing of Torrance–Sparrow 1967 / Cook–Torrance 1982:
 /// min(1, 2(n·m)(n·wo)/(wo·m), 2(n·m)(n·wi)/(wi·m)).
+#[inline(always)]
 pub fn v_cavity(wi: DVec3, wo: DVec3, m: DVec3) -> f64 {
     let (im, om) = (wi.dot(m), wo.dot(m));
     if im * wi.z <= 0.0 || om * wo.z <= 0.0 {

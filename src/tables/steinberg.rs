@@ -247,8 +247,11 @@ pub fn steinberg() -> &'static Steinberg {
     static TABLE: OnceLock<Steinberg> = OnceLock::new();
     TABLE.get_or_init(|| {
         let dims = format!("{N_MU}x{N_ALPHA}x{N_ETA}");
-        let table =
-            cached(&format!("steinberg-v{VERSION}-{dims}.f32"), N_MU * N_ALPHA * N_ETA * STRIDE, Steinberg::generate_table);
+        let table = cached(
+            &format!("steinberg-v{VERSION}-{dims}.f32"),
+            N_MU * N_ALPHA * N_ETA * STRIDE,
+            Steinberg::generate_table,
+        );
         let fits =
             cached(&format!("steinberg-fit-v{VERSION}-{dims}.f32"), N_ALPHA * N_ETA * (T_PARAMS + S_PARAMS), || {
                 Steinberg::generate_fits(&table)
