@@ -19,7 +19,8 @@
 //! each), the inter-reflections with the stack's hemispherical reflectance from below R̄↑ (precomputed by
 //! quadrature, 1 under total internal reflection), and the radiance compression η² of the medium above the base.
 
-use super::Options;
+use super::{Options, BLOCK};
+use crate::bsdf;
 use crate::optics::fresnel;
 use crate::optics::microfacet::{G2Form, Microfacet};
 use crate::stack::{value_error, Layer, Result, Stack};
@@ -621,6 +622,77 @@ impl Prepared {
             let up = |ch| up_at.iter().map(|&(r, w)| w * t.t_up[r * c + ch]).sum::<f64>();
             self.add_diffuse(down, up, out);
         }
+    }
+}
+
+impl Prepared {
+    /// `eval` for a block of columns (see models::Evaluator::eval_block). An isotropic tabulated stack runs in
+    /// passes over the block: table coordinates per row, then each lobe's GGX shape (a branch-free loop that
+    /// vectorizes) and its energies per channel, then the diffuse base. Other stacks evaluate row by row.
+    #[inline(always)]
+    pub fn eval_block(&self, wi: [&[f64]; 3], wo: [&[f64]; 3], out: &mut [f64]) {
+        let n = wi[0].len();
+        let c = self.channels;
+        let dir = |w: [&[f64]; 3], r: usize| DVec3::new(w[0][r], w[1][r], w[2][r]);
+        let Some(t) = self.table.as_ref().filter(|t| t.azimuths == 1) else {
+            for (r, o) in out.chunks_exact_mut(c).enumerate() {
+                self.eval(dir(wi, r), dir(wo, r), o);
+            }
+            return;
+        };
+        let ([ix, iy, iz], [ox, oy, oz]) = (wi.map(|col| &col[..n]), wo.map(|col| &col[..n]));
+        // Per row: the table node and weight of the viewing cosine, and whether both directions are above.
+        let (mut node, mut frac, mut above) = ([0usize; BLOCK], [0.0; BLOCK], [false; BLOCK]);
+        for r in 0..n {
+            let (wi, wo) = (DVec3::new(ix[r], iy[r], iz[r]), DVec3::new(ox[r], oy[r], oz[r]));
+            let cos_theta = if self.symmetric { wo.dot((wi + wo).normalize()).abs() } else { wo.z };
+            (node[r], frac[r]) = tables::node(cos_theta.clamp(0.0, 1.0).sqrt(), t.nodes);
+            above[r] = wi.z > 0.0 && wo.z > 0.0;
+        }
+        let (mut shape, mut alpha) = ([0.0; BLOCK], [0.0; BLOCK]);
+        let alpha = &mut alpha[..n];
+        for j in 0..t.lobes {
+            for (r, a) in alpha.iter_mut().enumerate() {
+                *a = (1.0 - frac[r]) * t.alpha[node[r] * t.lobes + j] + frac[r] * t.alpha[(node[r] + 1) * t.lobes + j];
+            }
+            // The G2 form a known constant in each loop, so that it vectorizes.
+            match self.g2 {
+                G2Form::HeightCorrelated => ggx_shapes(G2Form::HeightCorrelated, alpha, &above, wi, wo, &mut shape),
+                G2Form::Separable => ggx_shapes(G2Form::Separable, alpha, &above, wi, wo, &mut shape),
+                G2Form::VCavity => ggx_shapes(G2Form::VCavity, alpha, &above, wi, wo, &mut shape),
+            }
+            for (r, o) in out.chunks_exact_mut(c).enumerate() {
+                let (k, w) = (node[r], frac[r]);
+                for (ch, o) in o.iter_mut().enumerate() {
+                    let e = |k: usize| t.energy[(k * t.lobes + j) * c + ch];
+                    *o += ((1.0 - w) * e(k) + w * e(k + 1)) * shape[r];
+                }
+            }
+        }
+        if self.diffuse.is_some() {
+            for (r, o) in out.chunks_exact_mut(c).enumerate().filter(|&(r, _)| above[r]) {
+                let (wi, wo) = (dir(wi, r), dir(wo, r));
+                let (down_at, up_at) = (Self::corners(t, wi.z, wi), Self::corners(t, wo.z, wo));
+                let down = |ch| down_at.iter().map(|&(k, w)| w * t.t_down[k * c + ch]).sum::<f64>();
+                let up = |ch| up_at.iter().map(|&(k, w)| w * t.t_up[k * c + ch]).sum::<f64>();
+                self.add_diffuse(down, up, o);
+            }
+        }
+    }
+}
+
+/// D G2 / (4 cos θi cos θo) of isotropic GGX lobes of roughness alpha[r] for a block of columns; 0 where a row is
+/// not above the surface or its lobe is a Dirac delta (α = 0).
+#[inline(always)]
+fn ggx_shapes(form: G2Form, alpha: &[f64], above: &[bool], wi: [&[f64]; 3], wo: [&[f64]; 3], shape: &mut [f64]) {
+    let n = alpha.len();
+    let (above, shape) = (&above[..n], &mut shape[..n]);
+    let ([ix, iy, iz], [ox, oy, oz]) = (wi.map(|col| &col[..n]), wo.map(|col| &col[..n]));
+    let ggx = Microfacet::new(crate::optics::microfacet::Distribution::Ggx, 1.0, 1.0, 0.0);
+    for r in 0..n {
+        let (wi, wo) = (DVec3::new(ix[r], iy[r], iz[r]), DVec3::new(ox[r], oy[r], oz[r]));
+        let f = bsdf::reflection_geometry(&ggx.with_alpha(alpha[r], alpha[r]), form, wi, wo).map_or(0.0, |(g, _)| g);
+        shape[r] = if above[r] && alpha[r] > 0.0 { f } else { 0.0 };
     }
 }
 

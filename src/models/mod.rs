@@ -123,6 +123,7 @@ impl Evaluator {
     fn eval_block_portable(&self, wi: [&[f64]; 3], wo: [&[f64]; 3], out: &mut [f64]) {
         match self {
             Evaluator::Microfacet(p) => p.eval_block(wi, wo, out),
+            Evaluator::Belcour(p) => p.eval_block(wi, wo, out),
             _ => {
                 let k = out.len() / wi[0].len();
                 for (r, o) in out.chunks_exact_mut(k).enumerate() {
