@@ -22,10 +22,11 @@
 use super::{Options, BLOCK};
 use crate::bsdf;
 use crate::optics::fresnel;
-use crate::optics::microfacet::{G2Form, Microfacet};
+use crate::optics::microfacet::{Distribution, G2Form, Microfacet};
 use crate::stack::{value_error, Layer, Result, Stack};
 use crate::tables;
 use glam::DVec3;
+use rayon::prelude::*;
 use std::f64::consts::FRAC_1_PI;
 
 /// Belcour 2018 roughness-to-variance map h(α) = α^1.1 / (1 − α^1.1) (the reference code's fit).
@@ -79,13 +80,32 @@ impl Cov {
 
     /// Eigen-decomposition: (λ₁, λ₂, angle of λ₁'s eigenvector); (v, v, 0) for an isotropic Σ = vI.
     pub fn eigen(self) -> (f64, f64, f64) {
+        let (l1, l2, cos, sin) = self.eigen_frame();
+        (l1, l2, sin.atan2(cos))
+    }
+
+    /// Eigen-decomposition with the eigenvector of λ₁ ≥ λ₂ as (cos, sin) of its angle in (−π/2, π/2], from the
+    /// half-angle formulas (no trigonometric call, no branch: loops over it vectorize); (v, v, 1, 0) for Σ = vI.
+    #[inline(always)]
+    pub fn eigen_frame(self) -> (f64, f64, f64, f64) {
         let mean = 0.5 * (self.xx + self.yy);
         let half = 0.5 * (self.xx - self.yy);
-        if self.xy == 0.0 && half == 0.0 {
-            return (mean, mean, 0.0);
+        let r = (half * half + self.xy * self.xy).sqrt();
+        let cos_2a = half / r;
+        let cos = (0.5 * (1.0 + cos_2a)).max(0.0).sqrt();
+        let sin = (0.5 * (1.0 - cos_2a)).max(0.0).sqrt();
+        let sin = if self.xy < 0.0 { -sin } else { sin };
+        if r > 0.0 {
+            (mean + r, mean - r, cos, sin)
+        } else {
+            (mean, mean, 1.0, 0.0)
         }
-        let r = half.hypot(self.xy);
-        (mean + r, mean - r, 0.5 * self.xy.atan2(half))
+    }
+
+    /// The roughness matrix R diag(αx, αy) Rᵀ of this covariance's GGX lobe: h⁻¹ applied to its eigenvalues.
+    pub fn alpha_matrix(self) -> Cov {
+        let (ax, ay, angle) = self.ggx();
+        Cov::oriented(ax, ay, angle)
     }
 
     /// The anisotropic GGX lobe (αx, αy, tangent angle) of this covariance: h⁻¹ of the eigenvalues.
@@ -196,9 +216,9 @@ struct LobeTable {
     azimuths: usize,
     /// [node][azimuth][lobe][channel]
     energy: Vec<f64>,
-    /// [node][azimuth][lobe]: covariances (anisotropic stacks, interpolated then eigen-decomposed) or the GGX
-    /// roughness (isotropic stacks, interpolated directly: no decomposition per evaluation).
-    cov: Vec<Cov>,
+    /// [node][azimuth][lobe]: the GGX roughness (isotropic stacks) or roughness matrix (`Cov::alpha_matrix`,
+    /// anisotropic stacks; interpolated, then eigen-decomposed), so that no h⁻¹ is evaluated per evaluation.
+    alpha_matrix: Vec<Cov>,
     alpha: Vec<f64>,
     /// [node][azimuth][channel]: energy transmitted down to the base (T0i) and up from it (Ti0).
     t_down: Vec<f64>,
@@ -382,6 +402,7 @@ impl Prepared {
         let c = self.channels;
         let (nodes, azimuths) = if self.anisotropic { (ANISO_NODES, ANISO_AZIMUTHS) } else { (TABLE_NODES, 1) };
         let runs: Vec<_> = (0..nodes * azimuths)
+            .into_par_iter()
             .map(|k| {
                 let mu = ((k / azimuths) as f64 / (nodes - 1) as f64).powi(2);
                 let (sin, cos) = (std::f64::consts::PI * (k % azimuths) as f64 / azimuths as f64).sin_cos();
@@ -394,7 +415,7 @@ impl Prepared {
             nodes,
             azimuths,
             energy: vec![0.0; runs.len() * lobes * c],
-            cov: vec![Cov::ZERO; runs.len() * lobes],
+            alpha_matrix: vec![Cov::ZERO; runs.len() * lobes],
             alpha: vec![0.0; runs.len() * lobes],
             t_down: Vec::with_capacity(runs.len() * c),
             t_up: Vec::with_capacity(runs.len() * c),
@@ -402,7 +423,7 @@ impl Prepared {
         for (k, (l, state)) in runs.iter().enumerate() {
             for (j, lobe) in l.iter().enumerate() {
                 t.energy[(k * lobes + j) * c..(k * lobes + j + 1) * c].copy_from_slice(&lobe.energy);
-                t.cov[k * lobes + j] = lobe.cov;
+                t.alpha_matrix[k * lobes + j] = lobe.cov.alpha_matrix();
                 t.alpha[k * lobes + j] = lobe.roughness().0;
             }
             t.t_down.extend_from_slice(&state.t0i);
@@ -535,12 +556,12 @@ impl Prepared {
         let h = (wi + wo).normalize();
         let cos_theta = if self.symmetric { wo.dot(h).abs() } else { wo.z };
         let (cos_phi, sin_phi) = azimuth(wo);
-        if let Some(t) = &self.table {
-            return self.eval_tabulated(t, wi, wo, h, cos_theta, out);
+        if self.table.is_some() {
+            return self.eval_block([&[wi.x], &[wi.y], &[wi.z]], [&[wo.x], &[wo.y], &[wo.z]], out);
         }
         let (lobes, view) = self.adding(cos_theta, cos_phi, sin_phi);
         for lobe in &lobes {
-            self.add_lobe(lobe.roughness(), |ch| lobe.energy[ch], wi, wo, h, out);
+            self.add_lobe(lobe.roughness(), &lobe.energy, wi, wo, out);
         }
         if self.diffuse.is_some() {
             // T↓ at θi and T↑ at θo (not at |wo·h|): symmetric under exchange, since T0i = Ti0 in this model.
@@ -553,22 +574,54 @@ impl Prepared {
 
     /// Adds one GGX lobe of roughness (αx, αy, tangent angle) with per-channel `energy`; a lobe of roughness 0 is
     /// a Dirac delta, not part of f.
-    fn add_lobe(
-        &self,
-        (ax, ay, angle): (f64, f64, f64),
-        energy: impl Fn(usize) -> f64,
-        wi: DVec3,
-        wo: DVec3,
-        h: DVec3,
-        out: &mut [f64],
-    ) {
-        if ax <= 0.0 && ay <= 0.0 {
-            return;
+    fn add_lobe(&self, (ax, ay, angle): (f64, f64, f64), energy: &[f64], wi: DVec3, wo: DVec3, out: &mut [f64]) {
+        let mf = Microfacet::new(Distribution::Ggx, ax, ay, angle);
+        let shape = bsdf::reflection_geometry(&mf, self.g2, wi, wo).map_or(0.0, |(geo, _)| geo);
+        for (o, e) in out.iter_mut().zip(energy) {
+            *o += e * shape;
         }
-        let mf = Microfacet::new(crate::optics::microfacet::Distribution::Ggx, ax, ay, angle);
-        let shape = mf.d(h) * mf.g2(self.g2, wi, wo, h) / (4.0 * wi.z * wo.z);
-        for (ch, o) in out.iter_mut().enumerate() {
-            *o += energy(ch) * shape;
+    }
+
+    /// The lobes of `eval_block` for an anisotropic table: bilinear corners in (cos θ, azimuth) per row, each lobe's
+    /// roughness matrix interpolated and eigen-decomposed (no h⁻¹, no trigonometric call), then as isotropic.
+    #[inline(always)]
+    fn eval_block_anisotropic(&self, t: &LobeTable, wi: [&[f64]; 3], wo: [&[f64]; 3], out: &mut [f64]) {
+        let (n, c) = (wi[0].len(), self.channels);
+        let dir = |w: [&[f64]; 3], r: usize| DVec3::new(w[0][r], w[1][r], w[2][r]);
+        // Per row: the table corners (index, weight) as columns, and whether both directions are above.
+        let (mut index, mut weight, mut above) = ([[0usize; BLOCK]; 4], [[0.0; BLOCK]; 4], [false; BLOCK]);
+        for r in 0..n {
+            let (wi, wo) = (dir(wi, r), dir(wo, r));
+            let cos_theta = if self.symmetric { wo.dot((wi + wo).normalize()).abs() } else { wo.z };
+            for (q, (k, w)) in Self::corners(t, cos_theta, wo).into_iter().enumerate() {
+                (index[q][r], weight[q][r]) = (k, w);
+            }
+            above[r] = wi.z > 0.0 && wo.z > 0.0;
+        }
+        let corners: [(&[usize], &[f64]); 4] = std::array::from_fn(|q| (&index[q][..n], &weight[q][..n]));
+        let above = &above[..n];
+        let ([mut ax, mut ay, mut cos, mut sin], mut shape, mut sum) = ([[0.0; BLOCK]; 4], [0.0; BLOCK], [0.0; BLOCK]);
+        let sum = &mut sum[..n];
+        for j in 0..t.lobes {
+            for r in 0..n {
+                let m = corners.iter().fold(Cov::ZERO, |m, (k, w)| m + w[r] * t.alpha_matrix[k[r] * t.lobes + j]);
+                (ax[r], ay[r], cos[r], sin[r]) = m.eigen_frame();
+            }
+            // The G2 form a known constant in each loop, so that it vectorizes.
+            let (alpha, frame) = ([&ax[..n], &ay[..n]], Some([&cos[..n], &sin[..n]]));
+            match self.g2 {
+                G2Form::HeightCorrelated => {
+                    ggx_shapes(G2Form::HeightCorrelated, alpha, frame, above, wi, wo, &mut shape)
+                }
+                G2Form::Separable => ggx_shapes(G2Form::Separable, alpha, frame, above, wi, wo, &mut shape),
+                G2Form::VCavity => ggx_shapes(G2Form::VCavity, alpha, frame, above, wi, wo, &mut shape),
+            }
+            for ch in 0..c {
+                interpolate(&corners, |k| t.energy[(k * t.lobes + j) * c + ch], sum);
+                for (o, (e, s)) in out.chunks_exact_mut(c).zip(sum.iter().zip(&shape)) {
+                    o[ch] += e * s;
+                }
+            }
         }
     }
 
@@ -602,75 +655,67 @@ impl Prepared {
             ((k + 1) * n + b, fk * fa),
         ]
     }
-
-    fn eval_tabulated(&self, t: &LobeTable, wi: DVec3, wo: DVec3, h: DVec3, cos_theta: f64, out: &mut [f64]) {
-        let c = self.channels;
-        let at = Self::corners(t, cos_theta, wo);
-        for j in 0..t.lobes {
-            let roughness = if t.azimuths == 1 {
-                let alpha = at.iter().map(|&(r, w)| w * t.alpha[r * t.lobes + j]).sum::<f64>();
-                (alpha, alpha, 0.0)
-            } else {
-                at.iter().fold(Cov::ZERO, |acc, &(r, w)| acc + w * t.cov[r * t.lobes + j]).ggx()
-            };
-            let energy = |ch| at.iter().map(|&(r, w)| w * t.energy[(r * t.lobes + j) * c + ch]).sum::<f64>();
-            self.add_lobe(roughness, energy, wi, wo, h, out);
-        }
-        if self.diffuse.is_some() {
-            let (down_at, up_at) = (Self::corners(t, wi.z, wi), Self::corners(t, wo.z, wo));
-            let down = |ch| down_at.iter().map(|&(r, w)| w * t.t_down[r * c + ch]).sum::<f64>();
-            let up = |ch| up_at.iter().map(|&(r, w)| w * t.t_up[r * c + ch]).sum::<f64>();
-            self.add_diffuse(down, up, out);
-        }
-    }
 }
 
 impl Prepared {
-    /// `eval` for a block of columns (see models::Evaluator::eval_block). An isotropic tabulated stack runs in
-    /// passes over the block: table coordinates per row, then each lobe's GGX shape (a branch-free loop that
-    /// vectorizes) and its energies per channel, then the diffuse base. Other stacks evaluate row by row.
+    /// `eval` for a block of columns (see models::Evaluator::eval_block). A tabulated stack runs in passes over the
+    /// block: table corners per row, then per lobe its roughness (eigen-decomposed for anisotropic stacks), its GGX
+    /// shape (a branch-free loop that vectorizes) and its energies per channel, then the diffuse base. Without a
+    /// table, row by row.
     #[inline(always)]
     pub fn eval_block(&self, wi: [&[f64]; 3], wo: [&[f64]; 3], out: &mut [f64]) {
         let n = wi[0].len();
         let c = self.channels;
         let dir = |w: [&[f64]; 3], r: usize| DVec3::new(w[0][r], w[1][r], w[2][r]);
-        let Some(t) = self.table.as_ref().filter(|t| t.azimuths == 1) else {
+        let Some(t) = &self.table else {
             for (r, o) in out.chunks_exact_mut(c).enumerate() {
                 self.eval(dir(wi, r), dir(wo, r), o);
             }
             return;
         };
-        let ([ix, iy, iz], [ox, oy, oz]) = (wi.map(|col| &col[..n]), wo.map(|col| &col[..n]));
-        // Per row: the table node and weight of the viewing cosine, and whether both directions are above.
-        let (mut node, mut frac, mut above) = ([0usize; BLOCK], [0.0; BLOCK], [false; BLOCK]);
-        for r in 0..n {
-            let (wi, wo) = (DVec3::new(ix[r], iy[r], iz[r]), DVec3::new(ox[r], oy[r], oz[r]));
-            let cos_theta = if self.symmetric { wo.dot((wi + wo).normalize()).abs() } else { wo.z };
-            (node[r], frac[r]) = tables::node(cos_theta.clamp(0.0, 1.0).sqrt(), t.nodes);
-            above[r] = wi.z > 0.0 && wo.z > 0.0;
-        }
-        let (mut shape, mut alpha) = ([0.0; BLOCK], [0.0; BLOCK]);
-        let alpha = &mut alpha[..n];
-        for j in 0..t.lobes {
-            for (r, a) in alpha.iter_mut().enumerate() {
-                *a = (1.0 - frac[r]) * t.alpha[node[r] * t.lobes + j] + frac[r] * t.alpha[(node[r] + 1) * t.lobes + j];
+        if t.azimuths == 1 {
+            let ([ix, iy, iz], [ox, oy, oz]) = (wi.map(|col| &col[..n]), wo.map(|col| &col[..n]));
+            // Per row: the table node and weight of the viewing cosine, and whether both directions are above.
+            let (mut node, mut frac, mut above) = ([0usize; BLOCK], [0.0; BLOCK], [false; BLOCK]);
+            for r in 0..n {
+                let (wi, wo) = (DVec3::new(ix[r], iy[r], iz[r]), DVec3::new(ox[r], oy[r], oz[r]));
+                let cos_theta = if self.symmetric { wo.dot((wi + wo).normalize()).abs() } else { wo.z };
+                (node[r], frac[r]) = tables::node(cos_theta.clamp(0.0, 1.0).sqrt(), t.nodes);
+                above[r] = wi.z > 0.0 && wo.z > 0.0;
             }
-            // The G2 form a known constant in each loop, so that it vectorizes.
-            match self.g2 {
-                G2Form::HeightCorrelated => ggx_shapes(G2Form::HeightCorrelated, alpha, &above, wi, wo, &mut shape),
-                G2Form::Separable => ggx_shapes(G2Form::Separable, alpha, &above, wi, wo, &mut shape),
-                G2Form::VCavity => ggx_shapes(G2Form::VCavity, alpha, &above, wi, wo, &mut shape),
-            }
-            for (r, o) in out.chunks_exact_mut(c).enumerate() {
-                let (k, w) = (node[r], frac[r]);
-                for (ch, o) in o.iter_mut().enumerate() {
-                    let e = |k: usize| t.energy[(k * t.lobes + j) * c + ch];
-                    *o += ((1.0 - w) * e(k) + w * e(k + 1)) * shape[r];
+            let (mut shape, mut alpha) = ([0.0; BLOCK], [0.0; BLOCK]);
+            let alpha = &mut alpha[..n];
+            for j in 0..t.lobes {
+                for (r, a) in alpha.iter_mut().enumerate() {
+                    *a = (1.0 - frac[r]) * t.alpha[node[r] * t.lobes + j]
+                        + frac[r] * t.alpha[(node[r] + 1) * t.lobes + j];
+                }
+                // The G2 form a known constant in each loop, so that it vectorizes.
+                match self.g2 {
+                    G2Form::HeightCorrelated => {
+                        ggx_shapes(G2Form::HeightCorrelated, [alpha, alpha], None, &above[..n], wi, wo, &mut shape)
+                    }
+                    G2Form::Separable => {
+                        ggx_shapes(G2Form::Separable, [alpha, alpha], None, &above[..n], wi, wo, &mut shape)
+                    }
+                    G2Form::VCavity => {
+                        ggx_shapes(G2Form::VCavity, [alpha, alpha], None, &above[..n], wi, wo, &mut shape)
+                    }
+                }
+                for (r, o) in out.chunks_exact_mut(c).enumerate() {
+                    let (k, w) = (node[r], frac[r]);
+                    for (ch, o) in o.iter_mut().enumerate() {
+                        let e = |k: usize| t.energy[(k * t.lobes + j) * c + ch];
+                        *o += ((1.0 - w) * e(k) + w * e(k + 1)) * shape[r];
+                    }
                 }
             }
+        } else {
+            self.eval_block_anisotropic(t, wi, wo, out);
         }
+        let above = |r: usize| wi[2][r] > 0.0 && wo[2][r] > 0.0;
         if self.diffuse.is_some() {
-            for (r, o) in out.chunks_exact_mut(c).enumerate().filter(|&(r, _)| above[r]) {
+            for (r, o) in out.chunks_exact_mut(c).enumerate().filter(|&(r, _)| above(r)) {
                 let (wi, wo) = (dir(wi, r), dir(wo, r));
                 let (down_at, up_at) = (Self::corners(t, wi.z, wi), Self::corners(t, wo.z, wo));
                 let down = |ch| down_at.iter().map(|&(k, w)| w * t.t_down[k * c + ch]).sum::<f64>();
@@ -681,18 +726,43 @@ impl Prepared {
     }
 }
 
-/// D G2 / (4 cos θi cos θo) of isotropic GGX lobes of roughness alpha[r] for a block of columns; 0 where a row is
-/// not above the surface or its lobe is a Dirac delta (α = 0).
+/// Σ_q weight_q value(index_q) over the table corners (index and weight columns) of each row, into `sum`.
 #[inline(always)]
-fn ggx_shapes(form: G2Form, alpha: &[f64], above: &[bool], wi: [&[f64]; 3], wo: [&[f64]; 3], shape: &mut [f64]) {
-    let n = alpha.len();
-    let (above, shape) = (&above[..n], &mut shape[..n]);
+fn interpolate(corners: &[(&[usize], &[f64])], value: impl Fn(usize) -> f64, sum: &mut [f64]) {
+    sum.fill(0.0);
+    for (k, w) in corners {
+        for (s, (&k, &w)) in sum.iter_mut().zip(k.iter().zip(w.iter())) {
+            *s += w * value(k);
+        }
+    }
+}
+
+/// D G2 / (4 cos θi cos θo) of GGX lobes of roughness `alpha` = [αx, αy] per row, along the tangent frame `frame`
+/// = [cos, sin] per row (None: the local frame), for a block of columns; 0 where a row is not above the surface or
+/// its lobe is a Dirac delta (α = 0).
+#[inline(always)]
+fn ggx_shapes(
+    form: G2Form,
+    alpha: [&[f64]; 2],
+    frame: Option<[&[f64]; 2]>,
+    above: &[bool],
+    wi: [&[f64]; 3],
+    wo: [&[f64]; 3],
+    shape: &mut [f64],
+) {
+    let n = above.len();
+    let ([ax, ay], shape) = (alpha.map(|col| &col[..n]), &mut shape[..n]);
     let ([ix, iy, iz], [ox, oy, oz]) = (wi.map(|col| &col[..n]), wo.map(|col| &col[..n]));
-    let ggx = Microfacet::new(crate::optics::microfacet::Distribution::Ggx, 1.0, 1.0, 0.0);
+    let frame = frame.map(|f| f.map(|col| &col[..n]));
+    let ggx = Microfacet::new(Distribution::Ggx, 1.0, 1.0, 0.0);
     for r in 0..n {
         let (wi, wo) = (DVec3::new(ix[r], iy[r], iz[r]), DVec3::new(ox[r], oy[r], oz[r]));
-        let f = bsdf::reflection_geometry(&ggx.with_alpha(alpha[r], alpha[r]), form, wi, wo).map_or(0.0, |(g, _)| g);
-        shape[r] = if above[r] && alpha[r] > 0.0 { f } else { 0.0 };
+        let mf = match frame {
+            Some([cos, sin]) => ggx.with_frame(ax[r], ay[r], cos[r], sin[r]),
+            None => ggx.with_alpha(ax[r], ay[r]),
+        };
+        let f = bsdf::reflection_geometry(&mf, form, wi, wo).map_or(0.0, |(g, _)| g);
+        shape[r] = if above[r] { f } else { 0.0 };
     }
 }
 

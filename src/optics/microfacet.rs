@@ -38,6 +38,7 @@ impl Microfacet {
     }
 
     /// The same distribution and tangent frame with other roughnesses.
+    #[inline(always)]
     pub fn with_alpha(&self, alpha_x: f64, alpha_y: f64) -> Self {
         Self {
             alpha_x: alpha_x.max(MIN_ALPHA),
@@ -45,6 +46,13 @@ impl Microfacet {
             smooth: alpha_x == 0.0 && alpha_y == 0.0,
             ..*self
         }
+    }
+
+    /// The same distribution with other roughnesses along the tangent frame rotated by the angle of cosine `cos_phi`
+    /// and sine `sin_phi`.
+    #[inline(always)]
+    pub fn with_frame(&self, alpha_x: f64, alpha_y: f64, cos_phi: f64, sin_phi: f64) -> Self {
+        Self { cos_phi, sin_phi, ..self.with_alpha(alpha_x, alpha_y) }
     }
 
     /// True when both roughnesses are zero: the interface is a perfectly smooth (Dirac) one, whose reflection and
