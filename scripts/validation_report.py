@@ -311,8 +311,9 @@ def belcour_section():
                 "TIR step, TIR fraction only": {"tir": "fraction"}}
     names = list(lamina.materials.SUITE)
     out += ["", "### Open questions: paper vs reference code, measured", "",
-            "Lobe error (as above) averaged over θi = 0°, 30°, 60°, 80°. The defaults are the variant with the lowest "
-            "mean (the symmetric variant is kept an option: it changes what the statistics depend on). TIR step "
+            "Lobe error (as above) averaged over θi = 0°, 30°, 60°, 80°. For each open question (cosines, jacobian, "
+            "energy, tir) the default is the choice with the lowest mean; the symmetric variant, lower still, is an "
+            "option of another kind (it changes what the statistics depend on, for reciprocity). TIR step "
             "(option `tir`): the reference code's table holds a rough interface's mean transmittance E[1 − F], which "
             "for a smooth interface is the Fresnel transmission that Ti0 already carries (tested: "
             "test_reference_tir_table_repeats_the_fresnel_factor), so that step applies Fresnel twice; "
