@@ -19,7 +19,7 @@
 //! each), the inter-reflections with the stack's hemispherical reflectance from below R̄↑ (precomputed by
 //! quadrature, 1 under total internal reflection), and the radiance compression η² of the medium above the base.
 
-use super::{Options, BLOCK};
+use super::{eval_rows, row, Options, BLOCK};
 use crate::bsdf;
 use crate::optics::fresnel;
 use crate::optics::microfacet::{Distribution, G2Form, Microfacet};
@@ -553,12 +553,11 @@ impl Prepared {
         if wi.z <= 0.0 || wo.z <= 0.0 {
             return;
         }
-        let h = (wi + wo).normalize();
-        let cos_theta = if self.symmetric { wo.dot(h).abs() } else { wo.z };
-        let (cos_phi, sin_phi) = azimuth(wo);
         if self.table.is_some() {
             return self.eval_block([&[wi.x], &[wi.y], &[wi.z]], [&[wo.x], &[wo.y], &[wo.z]], out);
         }
+        let cos_theta = if self.symmetric { wo.dot((wi + wo).normalize()).abs() } else { wo.z };
+        let (cos_phi, sin_phi) = azimuth(wo);
         let (lobes, view) = self.adding(cos_theta, cos_phi, sin_phi);
         for lobe in &lobes {
             self.add_lobe(lobe.roughness(), &lobe.energy, wi, wo, out);
@@ -587,11 +586,10 @@ impl Prepared {
     #[inline(always)]
     fn eval_block_anisotropic(&self, t: &LobeTable, wi: [&[f64]; 3], wo: [&[f64]; 3], out: &mut [f64]) {
         let (n, c) = (wi[0].len(), self.channels);
-        let dir = |w: [&[f64]; 3], r: usize| DVec3::new(w[0][r], w[1][r], w[2][r]);
         // Per row: the table corners (index, weight) as columns, and whether both directions are above.
         let (mut index, mut weight, mut above) = ([[0usize; BLOCK]; 4], [[0.0; BLOCK]; 4], [false; BLOCK]);
         for r in 0..n {
-            let (wi, wo) = (dir(wi, r), dir(wo, r));
+            let (wi, wo) = (row(wi, r), row(wo, r));
             let cos_theta = if self.symmetric { wo.dot((wi + wo).normalize()).abs() } else { wo.z };
             for (q, (k, w)) in Self::corners(t, cos_theta, wo).into_iter().enumerate() {
                 (index[q][r], weight[q][r]) = (k, w);
@@ -607,15 +605,8 @@ impl Prepared {
                 let m = corners.iter().fold(Cov::ZERO, |m, (k, w)| m + w[r] * t.alpha_matrix[k[r] * t.lobes + j]);
                 (ax[r], ay[r], cos[r], sin[r]) = m.eigen_frame();
             }
-            // The G2 form a known constant in each loop, so that it vectorizes.
             let (alpha, frame) = ([&ax[..n], &ay[..n]], Some([&cos[..n], &sin[..n]]));
-            match self.g2 {
-                G2Form::HeightCorrelated => {
-                    ggx_shapes(G2Form::HeightCorrelated, alpha, frame, above, wi, wo, &mut shape)
-                }
-                G2Form::Separable => ggx_shapes(G2Form::Separable, alpha, frame, above, wi, wo, &mut shape),
-                G2Form::VCavity => ggx_shapes(G2Form::VCavity, alpha, frame, above, wi, wo, &mut shape),
-            }
+            ggx_shapes(self.g2, alpha, frame, above, wi, wo, &mut shape);
             for ch in 0..c {
                 interpolate(&corners, |k| t.energy[(k * t.lobes + j) * c + ch], sum);
                 for (o, (e, s)) in out.chunks_exact_mut(c).zip(sum.iter().zip(&shape)) {
@@ -666,12 +657,8 @@ impl Prepared {
     pub fn eval_block(&self, wi: [&[f64]; 3], wo: [&[f64]; 3], out: &mut [f64]) {
         let n = wi[0].len();
         let c = self.channels;
-        let dir = |w: [&[f64]; 3], r: usize| DVec3::new(w[0][r], w[1][r], w[2][r]);
         let Some(t) = &self.table else {
-            for (r, o) in out.chunks_exact_mut(c).enumerate() {
-                self.eval(dir(wi, r), dir(wo, r), o);
-            }
-            return;
+            return eval_rows(wi, wo, out, |wi, wo, o| self.eval(wi, wo, o));
         };
         if t.azimuths == 1 {
             let ([ix, iy, iz], [ox, oy, oz]) = (wi.map(|col| &col[..n]), wo.map(|col| &col[..n]));
@@ -690,18 +677,7 @@ impl Prepared {
                     *a = (1.0 - frac[r]) * t.alpha[node[r] * t.lobes + j]
                         + frac[r] * t.alpha[(node[r] + 1) * t.lobes + j];
                 }
-                // The G2 form a known constant in each loop, so that it vectorizes.
-                match self.g2 {
-                    G2Form::HeightCorrelated => {
-                        ggx_shapes(G2Form::HeightCorrelated, [alpha, alpha], None, &above[..n], wi, wo, &mut shape)
-                    }
-                    G2Form::Separable => {
-                        ggx_shapes(G2Form::Separable, [alpha, alpha], None, &above[..n], wi, wo, &mut shape)
-                    }
-                    G2Form::VCavity => {
-                        ggx_shapes(G2Form::VCavity, [alpha, alpha], None, &above[..n], wi, wo, &mut shape)
-                    }
-                }
+                ggx_shapes(self.g2, [alpha, alpha], None, &above[..n], wi, wo, &mut shape);
                 for (r, o) in out.chunks_exact_mut(c).enumerate() {
                     let (k, w) = (node[r], frac[r]);
                     for (ch, o) in o.iter_mut().enumerate() {
@@ -716,7 +692,7 @@ impl Prepared {
         let above = |r: usize| wi[2][r] > 0.0 && wo[2][r] > 0.0;
         if self.diffuse.is_some() {
             for (r, o) in out.chunks_exact_mut(c).enumerate().filter(|&(r, _)| above(r)) {
-                let (wi, wo) = (dir(wi, r), dir(wo, r));
+                let (wi, wo) = (row(wi, r), row(wo, r));
                 let (down_at, up_at) = (Self::corners(t, wi.z, wi), Self::corners(t, wo.z, wo));
                 let down = |ch| down_at.iter().map(|&(k, w)| w * t.t_down[k * c + ch]).sum::<f64>();
                 let up = |ch| up_at.iter().map(|&(k, w)| w * t.t_up[k * c + ch]).sum::<f64>();
@@ -750,19 +726,36 @@ fn ggx_shapes(
     wo: [&[f64]; 3],
     shape: &mut [f64],
 ) {
-    let n = above.len();
-    let ([ax, ay], shape) = (alpha.map(|col| &col[..n]), &mut shape[..n]);
-    let ([ix, iy, iz], [ox, oy, oz]) = (wi.map(|col| &col[..n]), wo.map(|col| &col[..n]));
-    let frame = frame.map(|f| f.map(|col| &col[..n]));
-    let ggx = Microfacet::new(Distribution::Ggx, 1.0, 1.0, 0.0);
-    for r in 0..n {
-        let (wi, wo) = (DVec3::new(ix[r], iy[r], iz[r]), DVec3::new(ox[r], oy[r], oz[r]));
-        let mf = match frame {
-            Some([cos, sin]) => ggx.with_frame(ax[r], ay[r], cos[r], sin[r]),
-            None => ggx.with_alpha(ax[r], ay[r]),
-        };
-        let f = bsdf::reflection_geometry(&mf, form, wi, wo).map_or(0.0, |(g, _)| g);
-        shape[r] = if above[r] { f } else { 0.0 };
+    // One loop per G2 form, the form a known constant in each, so that it vectorizes.
+    #[inline(always)]
+    fn shapes(
+        form: G2Form,
+        alpha: [&[f64]; 2],
+        frame: Option<[&[f64]; 2]>,
+        above: &[bool],
+        wi: [&[f64]; 3],
+        wo: [&[f64]; 3],
+        shape: &mut [f64],
+    ) {
+        let n = above.len();
+        let ([ax, ay], shape) = (alpha.map(|col| &col[..n]), &mut shape[..n]);
+        let ([ix, iy, iz], [ox, oy, oz]) = (wi.map(|col| &col[..n]), wo.map(|col| &col[..n]));
+        let frame = frame.map(|f| f.map(|col| &col[..n]));
+        let ggx = Microfacet::new(Distribution::Ggx, 1.0, 1.0, 0.0);
+        for r in 0..n {
+            let (wi, wo) = (DVec3::new(ix[r], iy[r], iz[r]), DVec3::new(ox[r], oy[r], oz[r]));
+            let mf = match frame {
+                Some([cos, sin]) => ggx.with_frame(ax[r], ay[r], cos[r], sin[r]),
+                None => ggx.with_alpha(ax[r], ay[r]),
+            };
+            let f = bsdf::reflection_geometry(&mf, form, wi, wo).map_or(0.0, |(g, _)| g);
+            shape[r] = if above[r] { f } else { 0.0 };
+        }
+    }
+    match form {
+        G2Form::HeightCorrelated => shapes(G2Form::HeightCorrelated, alpha, frame, above, wi, wo, shape),
+        G2Form::Separable => shapes(G2Form::Separable, alpha, frame, above, wi, wo, shape),
+        G2Form::VCavity => shapes(G2Form::VCavity, alpha, frame, above, wi, wo, shape),
     }
 }
 

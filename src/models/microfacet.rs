@@ -85,11 +85,7 @@ impl Prepared {
         let n = wi[0].len();
         let k = out.len() / n;
         let Prepared::Conductor { mf, g2, fresnel, eta, k: kappa } = self else {
-            for (r, o) in out.chunks_exact_mut(k).enumerate() {
-                let dir = |w: [&[f64]; 3]| DVec3::new(w[0][r], w[1][r], w[2][r]);
-                self.eval(dir(wi), dir(wo), o);
-            }
-            return;
+            return super::eval_rows(wi, wo, out, |wi, wo, o| self.eval(wi, wo, o));
         };
         let (mut geo, mut cos_h) = ([0.0; BLOCK], [0.0; BLOCK]);
         let (geo, cos_h) = (&mut geo[..n], &mut cos_h[..n]);

@@ -124,14 +124,23 @@ impl Evaluator {
         match self {
             Evaluator::Microfacet(p) => p.eval_block(wi, wo, out),
             Evaluator::Belcour(p) => p.eval_block(wi, wo, out),
-            _ => {
-                let k = out.len() / wi[0].len();
-                for (r, o) in out.chunks_exact_mut(k).enumerate() {
-                    let dir = |w: [&[f64]; 3]| DVec3::new(w[0][r], w[1][r], w[2][r]);
-                    self.eval(dir(wi), dir(wo), o);
-                }
-            }
+            _ => eval_rows(wi, wo, out, |wi, wo, o| self.eval(wi, wo, o)),
         }
+    }
+}
+
+/// Row r of a block's direction columns.
+#[inline(always)]
+pub fn row(w: [&[f64]; 3], r: usize) -> DVec3 {
+    DVec3::new(w[0][r], w[1][r], w[2][r])
+}
+
+/// A block evaluated row by row with `eval(wi, wo, out_row)`: the block path of what has no vectorized form.
+#[inline(always)]
+pub fn eval_rows(wi: [&[f64]; 3], wo: [&[f64]; 3], out: &mut [f64], eval: impl Fn(DVec3, DVec3, &mut [f64])) {
+    let k = out.len() / wi[0].len();
+    for (r, o) in out.chunks_exact_mut(k).enumerate() {
+        eval(row(wi, r), row(wo, r), o);
     }
 }
 
