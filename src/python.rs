@@ -444,7 +444,7 @@ fn eval_stack<'py>(
     let opts = parse_options(model, options)?;
     let prepared = models::prepare(model, &stack, &opts)?;
     let dirs = [("wi", wi, Kind::Direction), ("wo", wo, Kind::Direction)];
-    match (flake_normal, distance, &prepared) {
+    match (flake_normal, distance, &*prepared) {
         (None, None, _) => {
             batch_blocks(py, &dirs, stack.channels, |b, o| prepared.eval_block(b.columns(0), b.columns(1), o))
         }

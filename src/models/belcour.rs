@@ -19,7 +19,7 @@
 //! each), the inter-reflections with the stack's hemispherical reflectance from below R̄↑ (precomputed by
 //! quadrature, 1 under total internal reflection), and the radiance compression η² of the medium above the base.
 
-use super::{eval_rows, row, Options, BLOCK};
+use super::{eval_rows, Options, BLOCK};
 use crate::bsdf;
 use crate::optics::fresnel;
 use crate::optics::microfacet::{Distribution, G2Form, Microfacet};
@@ -205,7 +205,7 @@ struct DiffuseBase {
 /// (denser at grazing angles, where a smooth top's Fresnel term rises steeply): evaluation interpolates linearly
 /// instead of re-running the loop. The interpolation error is measured and asserted in tests/test_belcour.py.
 /// Anisotropic stacks add the viewing azimuth φ as a second axis (the statistics have period π in φ): 128 cosine
-/// nodes x 32 azimuths, bilinear.
+/// nodes x 32 azimuths uniform in `pseudo_angle`, bilinear.
 const TABLE_NODES: usize = 512;
 const ANISO_NODES: usize = 128;
 const ANISO_AZIMUTHS: usize = 32;
@@ -214,15 +214,20 @@ struct LobeTable {
     lobes: usize,
     nodes: usize,
     azimuths: usize,
-    /// [node][azimuth][lobe][channel]
-    energy: Vec<f64>,
-    /// [node][azimuth][lobe]: the GGX roughness (isotropic stacks) or roughness matrix (`Cov::alpha_matrix`,
-    /// anisotropic stacks; interpolated, then eigen-decomposed), so that no h⁻¹ is evaluated per evaluation.
-    alpha_matrix: Vec<Cov>,
-    alpha: Vec<f64>,
+    /// Values per lobe: the GGX roughness (isotropic stacks) or the roughness matrix (`Cov::alpha_matrix`, xx, xy,
+    /// yy; anisotropic stacks), then the energy per channel. No h⁻¹ is evaluated per evaluation.
+    width: usize,
+    /// [node][azimuth][lobe][width]: each run's record is contiguous, so that interpolation reads whole records.
+    record: Vec<f64>,
     /// [node][azimuth][channel]: energy transmitted down to the base (T0i) and up from it (Ti0).
     t_down: Vec<f64>,
     t_up: Vec<f64>,
+}
+
+/// Table corners of up to BLOCK rows: run index and bilinear weight of each of the four corners, per row.
+struct Corners {
+    index: [[u32; BLOCK]; 4],
+    weight: [[f64; BLOCK]; 4],
 }
 
 pub struct Prepared {
@@ -405,26 +410,28 @@ impl Prepared {
             .into_par_iter()
             .map(|k| {
                 let mu = ((k / azimuths) as f64 / (nodes - 1) as f64).powi(2);
-                let (sin, cos) = (std::f64::consts::PI * (k % azimuths) as f64 / azimuths as f64).sin_cos();
+                let (cos, sin) = direction_of_pseudo_angle(2.0 * (k % azimuths) as f64 / azimuths as f64);
                 self.adding(mu, cos, sin)
             })
             .collect();
         let lobes = runs.iter().map(|(l, _)| l.len()).max().unwrap_or(0);
+        let width = if self.anisotropic { 3 } else { 1 } + c;
         let mut t = LobeTable {
             lobes,
             nodes,
             azimuths,
-            energy: vec![0.0; runs.len() * lobes * c],
-            alpha_matrix: vec![Cov::ZERO; runs.len() * lobes],
-            alpha: vec![0.0; runs.len() * lobes],
+            width,
+            record: vec![0.0; runs.len() * lobes * width],
             t_down: Vec::with_capacity(runs.len() * c),
             t_up: Vec::with_capacity(runs.len() * c),
         };
         for (k, (l, state)) in runs.iter().enumerate() {
             for (j, lobe) in l.iter().enumerate() {
-                t.energy[(k * lobes + j) * c..(k * lobes + j + 1) * c].copy_from_slice(&lobe.energy);
-                t.alpha_matrix[k * lobes + j] = lobe.cov.alpha_matrix();
-                t.alpha[k * lobes + j] = lobe.roughness().0;
+                let v = &mut t.record[(k * lobes + j) * width..][..width];
+                let m = lobe.cov.alpha_matrix();
+                let alpha: &[f64] = if self.anisotropic { &[m.xx, m.xy, m.yy] } else { &[lobe.roughness().0] };
+                v[..alpha.len()].copy_from_slice(alpha);
+                v[alpha.len()..].copy_from_slice(&lobe.energy);
             }
             t.t_down.extend_from_slice(&state.t0i);
             t.t_up.extend_from_slice(&state.ti0);
@@ -581,41 +588,6 @@ impl Prepared {
         }
     }
 
-    /// The lobes of `eval_block` for an anisotropic table: bilinear corners in (cos θ, azimuth) per row, each lobe's
-    /// roughness matrix interpolated and eigen-decomposed (no h⁻¹, no trigonometric call), then as isotropic.
-    #[inline(always)]
-    fn eval_block_anisotropic(&self, t: &LobeTable, wi: [&[f64]; 3], wo: [&[f64]; 3], out: &mut [f64]) {
-        let (n, c) = (wi[0].len(), self.channels);
-        // Per row: the table corners (index, weight) as columns, and whether both directions are above.
-        let (mut index, mut weight, mut above) = ([[0usize; BLOCK]; 4], [[0.0; BLOCK]; 4], [false; BLOCK]);
-        for r in 0..n {
-            let (wi, wo) = (row(wi, r), row(wo, r));
-            let cos_theta = if self.symmetric { wo.dot((wi + wo).normalize()).abs() } else { wo.z };
-            for (q, (k, w)) in Self::corners(t, cos_theta, wo).into_iter().enumerate() {
-                (index[q][r], weight[q][r]) = (k, w);
-            }
-            above[r] = wi.z > 0.0 && wo.z > 0.0;
-        }
-        let corners: [(&[usize], &[f64]); 4] = std::array::from_fn(|q| (&index[q][..n], &weight[q][..n]));
-        let above = &above[..n];
-        let ([mut ax, mut ay, mut cos, mut sin], mut shape, mut sum) = ([[0.0; BLOCK]; 4], [0.0; BLOCK], [0.0; BLOCK]);
-        let sum = &mut sum[..n];
-        for j in 0..t.lobes {
-            for r in 0..n {
-                let m = corners.iter().fold(Cov::ZERO, |m, (k, w)| m + w[r] * t.alpha_matrix[k[r] * t.lobes + j]);
-                (ax[r], ay[r], cos[r], sin[r]) = m.eigen_frame();
-            }
-            let (alpha, frame) = ([&ax[..n], &ay[..n]], Some([&cos[..n], &sin[..n]]));
-            ggx_shapes(self.g2, alpha, frame, above, wi, wo, &mut shape);
-            for ch in 0..c {
-                interpolate(&corners, |k| t.energy[(k * t.lobes + j) * c + ch], sum);
-                for (o, (e, s)) in out.chunks_exact_mut(c).zip(sum.iter().zip(&shape)) {
-                    o[ch] += e * s;
-                }
-            }
-        }
-    }
-
     /// Adds the diffuse base ρ/π · T↓ T↑ / ((1 − ρ R̄↑) η²) from the energies transmitted down and up per channel.
     fn add_diffuse(&self, down: impl Fn(usize) -> f64, up: impl Fn(usize) -> f64, out: &mut [f64]) {
         let Some(d) = &self.diffuse else { return };
@@ -625,34 +597,34 @@ impl Prepared {
         }
     }
 
-    /// Bilinear interpolation weights of a direction in the table: [(run index, weight); 4], linear in √cos θ and
-    /// periodic (period π) in the azimuth.
-    fn corners(t: &LobeTable, cos_theta: f64, w: DVec3) -> [(usize, f64); 4] {
-        let x = cos_theta.clamp(0.0, 1.0).sqrt() * (t.nodes - 1) as f64;
-        let k = (x as usize).min(t.nodes - 2);
-        let fk = x - k as f64;
-        if t.azimuths == 1 {
-            return [(k, 1.0 - fk), (k + 1, fk), (0, 0.0), (0, 0.0)];
+    /// Bilinear interpolation corners of directions (columns x, y, and the cosine θ to look up) in the table: linear
+    /// in √cos θ and in the azimuth's `pseudo_angle` (period π); isotropic tables use the first two corners only.
+    #[inline(always)]
+    fn corners(t: &LobeTable, cos_theta: &[f64], x: &[f64], y: &[f64]) -> Corners {
+        let mut c = Corners { index: [[0; BLOCK]; 4], weight: [[0.0; BLOCK]; 4] };
+        let (nodes, azimuths) = (t.nodes as u32, t.azimuths as u32);
+        for r in 0..cos_theta.len() {
+            let u = cos_theta[r].clamp(0.0, 1.0).sqrt() * (nodes - 1) as f64;
+            let k = (u as u32).min(nodes - 2);
+            let fk = u - k as f64;
+            let v = if azimuths == 1 { 0.0 } else { 0.5 * pseudo_angle(x[r], y[r]) * azimuths as f64 };
+            let a = (v as u32).min(azimuths - 1);
+            let fa = v - a as f64;
+            let b = if a + 1 == azimuths { 0 } else { a + 1 };
+            (c.index[0][r], c.weight[0][r]) = (k * azimuths + a, (1.0 - fk) * (1.0 - fa));
+            (c.index[1][r], c.weight[1][r]) = ((k + 1) * azimuths + a, fk * (1.0 - fa));
+            (c.index[2][r], c.weight[2][r]) = (k * azimuths + b, (1.0 - fk) * fa);
+            (c.index[3][r], c.weight[3][r]) = ((k + 1) * azimuths + b, fk * fa);
         }
-        let phi = w.y.atan2(w.x).rem_euclid(std::f64::consts::PI) / std::f64::consts::PI * t.azimuths as f64;
-        let a = (phi as usize).min(t.azimuths - 1);
-        let fa = phi - a as f64;
-        let b = (a + 1) % t.azimuths;
-        let n = t.azimuths;
-        [
-            (k * n + a, (1.0 - fk) * (1.0 - fa)),
-            (k * n + b, (1.0 - fk) * fa),
-            ((k + 1) * n + a, fk * (1.0 - fa)),
-            ((k + 1) * n + b, fk * fa),
-        ]
+        c
     }
 }
 
 impl Prepared {
     /// `eval` for a block of columns (see models::Evaluator::eval_block). A tabulated stack runs in passes over the
-    /// block: table corners per row, then per lobe its roughness (eigen-decomposed for anisotropic stacks), its GGX
-    /// shape (a branch-free loop that vectorizes) and its energies per channel, then the diffuse base. Without a
-    /// table, row by row.
+    /// block: table corners per row; the records of all lobes interpolated per row (contiguous reads); then per lobe
+    /// its roughness (eigen-decomposed for anisotropic stacks), its GGX shape (a branch-free loop that vectorizes)
+    /// and its energies per channel; then the diffuse base. Without a table, row by row.
     #[inline(always)]
     pub fn eval_block(&self, wi: [&[f64]; 3], wo: [&[f64]; 3], out: &mut [f64]) {
         let n = wi[0].len();
@@ -660,55 +632,74 @@ impl Prepared {
         let Some(t) = &self.table else {
             return eval_rows(wi, wo, out, |wi, wo, o| self.eval(wi, wo, o));
         };
-        if t.azimuths == 1 {
-            let ([ix, iy, iz], [ox, oy, oz]) = (wi.map(|col| &col[..n]), wo.map(|col| &col[..n]));
-            // Per row: the table node and weight of the viewing cosine, and whether both directions are above.
-            let (mut node, mut frac, mut above) = ([0usize; BLOCK], [0.0; BLOCK], [false; BLOCK]);
-            for r in 0..n {
+        let ([ix, iy, iz], [ox, oy, oz]) = (wi.map(|col| &col[..n]), wo.map(|col| &col[..n]));
+        let mut above = [false; BLOCK];
+        let mut cos_theta = [0.0; BLOCK];
+        for r in 0..n {
+            above[r] = iz[r] > 0.0 && oz[r] > 0.0;
+            cos_theta[r] = if self.symmetric {
                 let (wi, wo) = (DVec3::new(ix[r], iy[r], iz[r]), DVec3::new(ox[r], oy[r], oz[r]));
-                let cos_theta = if self.symmetric { wo.dot((wi + wo).normalize()).abs() } else { wo.z };
-                (node[r], frac[r]) = tables::node(cos_theta.clamp(0.0, 1.0).sqrt(), t.nodes);
-                above[r] = wi.z > 0.0 && wo.z > 0.0;
-            }
-            let (mut shape, mut alpha) = ([0.0; BLOCK], [0.0; BLOCK]);
-            let alpha = &mut alpha[..n];
-            for j in 0..t.lobes {
-                for (r, a) in alpha.iter_mut().enumerate() {
-                    *a = (1.0 - frac[r]) * t.alpha[node[r] * t.lobes + j]
-                        + frac[r] * t.alpha[(node[r] + 1) * t.lobes + j];
+                wo.dot((wi + wo).normalize()).abs()
+            } else {
+                oz[r]
+            };
+        }
+        let (above, anisotropic) = (&above[..n], t.azimuths > 1);
+        let corners = Self::corners(t, &cos_theta[..n], ox, oy);
+        let ([mut ax, mut ay, mut cos, mut sin], mut shape) = ([[0.0; BLOCK]; 4], [0.0; BLOCK]);
+        if anisotropic {
+            // Per row, the records of all lobes interpolated at once (contiguous reads of the four corners).
+            let w = t.lobes * t.width;
+            let mut values = vec![0.0; n * w];
+            for (r, v) in values.chunks_exact_mut(w).enumerate() {
+                let [r0, r1, r2, r3] = std::array::from_fn(|q| &t.record[corners.index[q][r] as usize * w..][..w]);
+                let [w0, w1, w2, w3] = std::array::from_fn(|q| corners.weight[q][r]);
+                for i in 0..w {
+                    v[i] = w0 * r0[i] + w1 * r1[i] + w2 * r2[i] + w3 * r3[i];
                 }
-                ggx_shapes(self.g2, [alpha, alpha], None, &above[..n], wi, wo, &mut shape);
+            }
+            for j in 0..t.lobes {
+                let lobe = |r: usize| &values[r * w + j * t.width..][..t.width];
+                // The roughness matrices as columns (xx, xy, yy in ax, ay, cos), then eigen-decomposed in place.
+                for r in 0..n {
+                    (ax[r], ay[r], cos[r]) = (lobe(r)[0], lobe(r)[1], lobe(r)[2]);
+                }
+                for r in 0..n {
+                    (ax[r], ay[r], cos[r], sin[r]) = Cov { xx: ax[r], xy: ay[r], yy: cos[r] }.eigen_frame();
+                }
+                let frame = Some([&cos[..n], &sin[..n]]);
+                ggx_shapes(self.g2, [&ax[..n], &ay[..n]], frame, above, wi, wo, &mut shape);
                 for (r, o) in out.chunks_exact_mut(c).enumerate() {
-                    let (k, w) = (node[r], frac[r]);
-                    for (ch, o) in o.iter_mut().enumerate() {
-                        let e = |k: usize| t.energy[(k * t.lobes + j) * c + ch];
-                        *o += ((1.0 - w) * e(k) + w * e(k + 1)) * shape[r];
+                    for (o, e) in o.iter_mut().zip(&lobe(r)[3..]) {
+                        *o += e * shape[r];
                     }
                 }
             }
         } else {
-            self.eval_block_anisotropic(t, wi, wo, out);
-        }
-        let above = |r: usize| wi[2][r] > 0.0 && wo[2][r] > 0.0;
-        if self.diffuse.is_some() {
-            for (r, o) in out.chunks_exact_mut(c).enumerate().filter(|&(r, _)| above(r)) {
-                let (wi, wo) = (row(wi, r), row(wo, r));
-                let (down_at, up_at) = (Self::corners(t, wi.z, wi), Self::corners(t, wo.z, wo));
-                let down = |ch| down_at.iter().map(|&(k, w)| w * t.t_down[k * c + ch]).sum::<f64>();
-                let up = |ch| up_at.iter().map(|&(k, w)| w * t.t_up[k * c + ch]).sum::<f64>();
-                self.add_diffuse(down, up, o);
+            // Two corners along cos θ: each value gathered from its two records.
+            let (k, weight) = ([&corners.index[0][..n], &corners.index[1][..n]], &corners.weight);
+            for j in 0..t.lobes {
+                let at = |q: usize, r: usize| (k[q][r] as usize * t.lobes + j) * t.width;
+                for r in 0..n {
+                    ax[r] = weight[0][r] * t.record[at(0, r)] + weight[1][r] * t.record[at(1, r)];
+                }
+                ggx_shapes(self.g2, [&ax[..n], &ax[..n]], None, above, wi, wo, &mut shape);
+                for (r, o) in out.chunks_exact_mut(c).enumerate() {
+                    let (a, b) = (at(0, r) + 1, at(1, r) + 1);
+                    for (ch, o) in o.iter_mut().enumerate() {
+                        *o += (weight[0][r] * t.record[a + ch] + weight[1][r] * t.record[b + ch]) * shape[r];
+                    }
+                }
             }
         }
-    }
-}
-
-/// Σ_q weight_q value(index_q) over the table corners (index and weight columns) of each row, into `sum`.
-#[inline(always)]
-fn interpolate(corners: &[(&[usize], &[f64])], value: impl Fn(usize) -> f64, sum: &mut [f64]) {
-    sum.fill(0.0);
-    for (k, w) in corners {
-        for (s, (&k, &w)) in sum.iter_mut().zip(k.iter().zip(w.iter())) {
-            *s += w * value(k);
+        if self.diffuse.is_some() {
+            let (down_at, up_at) = (Self::corners(t, iz, ix, iy), Self::corners(t, oz, ox, oy));
+            for (r, o) in out.chunks_exact_mut(c).enumerate().filter(|&(r, _)| above[r]) {
+                let at = |corners: &Corners, table: &[f64], ch: usize| {
+                    (0..4).map(|q| corners.weight[q][r] * table[corners.index[q][r] as usize * c + ch]).sum::<f64>()
+                };
+                self.add_diffuse(|ch| at(&down_at, &t.t_down, ch), |ch| at(&up_at, &t.t_up, ch), o);
+            }
         }
     }
 }
@@ -757,6 +748,29 @@ fn ggx_shapes(
         G2Form::Separable => shapes(G2Form::Separable, alpha, frame, above, wi, wo, shape),
         G2Form::VCavity => shapes(G2Form::VCavity, alpha, frame, above, wi, wo, shape),
     }
+}
+
+/// A monotonic stand-in for the azimuth modulo π, without trigonometry: p = 1 − x / (|x| + y) ∈ [0, 2) after
+/// folding (x, y) into the upper half-plane (0 along the normal). The anisotropic table's azimuth nodes are uniform
+/// in p (their spacing in φ varies by a factor 2).
+#[inline(always)]
+fn pseudo_angle(x: f64, y: f64) -> f64 {
+    let flip = y < 0.0 || (y == 0.0 && x < 0.0);
+    let (x, y) = if flip { (-x, -y) } else { (x, y) };
+    let p = 1.0 - x / (x.abs() + y);
+    if p.is_finite() && p < 2.0 {
+        p
+    } else {
+        0.0
+    }
+}
+
+/// (cos φ, sin φ) of the azimuth whose `pseudo_angle` is p ∈ [0, 2).
+fn direction_of_pseudo_angle(p: f64) -> (f64, f64) {
+    let x = 1.0 - p;
+    let y = 1.0 - x.abs();
+    let r = x.hypot(y);
+    (x / r, y / r)
 }
 
 /// (cos φ, sin φ) of a direction's azimuth; (1, 0) along the normal.
@@ -812,6 +826,21 @@ mod tests {
         assert!((back.xx - c.xx).abs() < 1e-12 && (back.xy - c.xy).abs() < 1e-12 && (back.yy - c.yy).abs() < 1e-12);
         assert_eq!(Cov::iso(0.2).eigen(), (0.2, 0.2, 0.0));
         assert!((c.along(0.7f64.cos(), 0.7f64.sin()) - 0.3).abs() < 1e-12);
+    }
+
+    #[test]
+    fn pseudo_angle_is_monotonic_in_the_azimuth_and_round_trips() {
+        let mut last = -1.0;
+        for k in 0..360 {
+            let phi = std::f64::consts::PI * k as f64 / 360.0;
+            let p = pseudo_angle(phi.cos(), phi.sin());
+            assert!(p > last && p < 2.0, "φ = {phi}: {p} after {last}");
+            assert_eq!(pseudo_angle(-phi.cos(), -phi.sin()), p, "period π");
+            let (c, s) = direction_of_pseudo_angle(p);
+            assert!((c - phi.cos()).abs() < 1e-12 && (s - phi.sin()).abs() < 1e-12);
+            last = p;
+        }
+        assert_eq!(pseudo_angle(0.0, 0.0), 0.0);
     }
 
     #[test]

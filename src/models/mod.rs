@@ -1,6 +1,7 @@
-//! The BRDF models behind `Stack.eval(model=...)`. A model is prepared once per call from the stack and its
-//! options (per-channel constants, distributions, tables), then evaluated for many direction pairs; each
-//! evaluation writes one value per channel.
+//! The BRDF models behind `Stack.eval(model=...)`. A model is prepared from the stack and its options (per-channel
+//! constants, distributions, tables), then evaluated for many direction pairs; each evaluation writes one value per
+//! channel. The last few prepared models are kept, so that repeated calls on one material (a renderer's loop, a
+//! notebook's sweep) build their tables once.
 
 pub mod belcour;
 pub mod microfacet;
@@ -12,6 +13,7 @@ use crate::optics::fresnel::FresnelForm;
 use crate::optics::microfacet::{Distribution, G2Form};
 use crate::stack::{value_error, Result, Stack};
 use glam::DVec3;
+use std::sync::{Arc, Mutex};
 
 /// Rows per evaluation block (`Evaluator::eval_block`).
 pub const BLOCK: usize = 64;
@@ -79,8 +81,36 @@ pub enum Evaluator {
     WeidlichWilkie(weidlich_wilkie::Prepared),
 }
 
-/// Prepares `model` for `stack`, or explains why the model cannot represent the stack.
-pub fn prepare(model: &str, stack: &Stack, opts: &Options) -> Result<Evaluator> {
+/// How many prepared models `prepare` keeps (most recently used first).
+const CACHED: usize = 16;
+
+/// Prepares `model` for `stack`, or explains why the model cannot represent the stack; a model prepared by one of
+/// the last CACHED calls with equal arguments is reused.
+pub fn prepare(model: &str, stack: &Stack, opts: &Options) -> Result<Arc<Evaluator>> {
+    static CACHE: Mutex<Vec<(String, Arc<Evaluator>)>> = Mutex::new(Vec::new());
+    // Debug prints every f64 in its shortest round-trip form: equal keys mean equal arguments.
+    let key = format!("{model}|{stack:?}|{opts:?}");
+    let hit = {
+        let mut cache = CACHE.lock().unwrap_or_else(|e| e.into_inner());
+        let k = cache.iter().position(|(k, _)| *k == key);
+        k.map(|k| {
+            let entry = cache.remove(k);
+            let evaluator = entry.1.clone();
+            cache.insert(0, entry);
+            evaluator
+        })
+    };
+    if let Some(evaluator) = hit {
+        return Ok(evaluator);
+    }
+    let evaluator = Arc::new(prepare_uncached(model, stack, opts)?);
+    let mut cache = CACHE.lock().unwrap_or_else(|e| e.into_inner());
+    cache.insert(0, (key, evaluator.clone()));
+    cache.truncate(CACHED);
+    Ok(evaluator)
+}
+
+fn prepare_uncached(model: &str, stack: &Stack, opts: &Options) -> Result<Evaluator> {
     match model {
         "microfacet" => Ok(Evaluator::Microfacet(microfacet::prepare(stack, opts)?)),
         "belcour" => Ok(Evaluator::Belcour(belcour::prepare(stack, opts)?)),
