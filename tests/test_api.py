@@ -160,3 +160,18 @@ def test_cli_plot_writes_png(tmp_path):
     png = tmp_path / "copper_microfacet_slices.png"
     assert png.exists() and png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n", res.stdout + res.stderr
     assert png.stat().st_size > 10_000
+
+
+def test_prepared_models_are_reused_only_for_equal_arguments(rng):
+    """lamina keeps the last 16 prepared models (Belcour's tables) keyed by model, stack and options: a stack that
+    differs in its last digit, or other options, must not reuse them; one evicted and prepared again gives the same
+    bits."""
+    def stack(ior):
+        return lamina.Stack([lamina.Dielectric(ior, 0.2), lamina.materials.metal("Cu", 0.35)])
+    wi, wo = random_hemisphere(rng, 2000), random_hemisphere(rng, 2000)
+    first = stack(1.5).eval(wi, wo, "belcour")
+    assert not np.array_equal(stack(1.5 + 1e-12).eval(wi, wo, "belcour"), first)
+    assert not np.array_equal(stack(1.5).eval(wi, wo, "belcour", symmetric=True), first)
+    for k in range(20):  # evicts the first one
+        stack(1.2 + 0.01 * k).eval(wi[:1], wo[:1], "belcour")
+    np.testing.assert_array_equal(stack(1.5).eval(wi, wo, "belcour"), first)

@@ -174,8 +174,9 @@ def test_rotating_anisotropic_layers_and_directions_together_leaves_f_unchanged(
 
 @pytest.mark.parametrize("symmetric", [False, True])
 def test_anisotropic_table_matches_the_direct_loop(symmetric, rng):
-    """Anisotropic stacks tabulate over (√cos θ, azimuth) on 128 x 32 nodes. Measured over 50k random pairs of
-    anisotropic-coat-metal: max relative difference 0.55%, 99.9th percentile 0.35%. Asserted: 1% and 0.5%."""
+    """Anisotropic stacks tabulate over (√cos θ, azimuth) on 128 x 32 nodes (uniform in a pseudo-angle within 0.004
+    rad of φ). Measured over 50k random pairs of anisotropic-coat-metal, two seeds, both variants: max relative
+    difference 0.55%, 99.9th percentile 0.36%. Asserted: 1% and 0.5%."""
     stack = lamina.materials.suite("anisotropic-coat-metal")
     wi, wo = aniso_pairs(rng, 50_000)
     a = stack.eval(wi, wo, "belcour", symmetric=symmetric)

@@ -139,10 +139,12 @@ class Stack:
           'v_cavity'; `fresnel` 'exact' | 'schlick' | 'lazanyi'. Defaults: GGX, height-correlated Smith, exact;
           model="weidlich_wilkie" defaults to Beckmann with the V-cavity G (Torrance–Sparrow).
         - "belcour": `symmetric` (the reciprocal variant); where paper and reference code differ, `cosines`
-          'frozen' (code) | 'real' (paper), `jacobian` 'j12' (code) | 'j21' (paper), `energy` 'fgd' | 'fresnel';
+          'frozen' (code: the transmission scale s at normal incidence) | 'real' (paper: s from the exact Jacobians
+          at the lobe mean, |J_t(θi)| / |J_r(θt)|), `jacobian` 'j12' (code) | 'j21' (paper), `energy` 'fgd' | 'fresnel';
           the code's optional TIR step, `tir` 'off' (default) | 'transmittance' (the code's table, which repeats the
           Fresnel factor) | 'fraction' (only the totally reflected fraction);
-          `tabulated` (default True) interpolates the adding-doubling from a per-call table over cos θ.
+          `tabulated` (default True) interpolates the adding-doubling from a table over cos θ (and the azimuth, for
+          anisotropic stacks), built on the first call and kept for the next calls with the same stack and options.
         - "steinberg": `lut` 'tabulated' (default) | 'fitted' (the article's closed forms).
         - "steinberg" and "weidlich_wilkie": `clamp_roughness` (Elek's m₂ ≥ m₁, default True) and `eta2` (the
           radiance compression 1/η² through each coat, lamina's addition, default True); set both False for the

@@ -30,8 +30,8 @@ pub struct Options {
     pub symmetric: bool,
     /// Belcour 2018 choices where the paper and the reference code differ (see models/belcour.rs).
     pub belcour: belcour::Variant,
-    /// Belcour 2018: interpolate the adding-doubling results from a per-call table over cos θ (fast) instead of
-    /// running it for every evaluation.
+    /// Belcour 2018: interpolate the adding-doubling results from a table over cos θ (fast), built when the model
+    /// is prepared, instead of running it for every evaluation.
     pub belcour_table: bool,
     /// Steinberg: the fitted closed forms instead of the tabulated integrals.
     pub steinberg_fitted: bool,

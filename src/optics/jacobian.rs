@@ -35,20 +35,27 @@ pub fn refract(theta_i: f64, eta: f64, xh: f64, yh: f64) -> Option<[[f64; 2]; 2]
     Some([[da * dd[0] * h.x + a, da * dd[1] * h.x], [da * dd[0] * h.y, da * dd[1] * h.y + a]])
 }
 
-/// First-order forms at h = n (Belcour 2018): J_r ≈ 2 cos θi I.
+/// The scale of J_r at h = n (Belcour 2018, first order): J_r = 2 cos θi I.
+pub fn reflection_scale(cos_i: f64) -> f64 {
+    2.0 * cos_i
+}
+
+/// The scale of J_t at h = n (Belcour 2018, first order): J_t = ((cos θi − η cos θt)/η) I, cos θt from Snell's law;
+/// None under total internal reflection.
+pub fn refraction_scale(cos_i: f64, eta: f64) -> Option<f64> {
+    let sin2_t = (1.0 - cos_i * cos_i) / (eta * eta);
+    (sin2_t < 1.0).then(|| (cos_i - eta * (1.0 - sin2_t).sqrt()) / eta)
+}
+
+/// First-order form at h = n (Belcour 2018): J_r ≈ 2 cos θi I.
 pub fn reflect_first_order(theta_i: f64) -> [[f64; 2]; 2] {
-    let c = 2.0 * theta_i.cos();
+    let c = reflection_scale(theta_i.cos());
     [[c, 0.0], [0.0, c]]
 }
 
 /// First-order form at h = n (Belcour 2018): J_t ≈ ((cos θi − η cos θt)/η) I; None under total internal reflection.
 pub fn refract_first_order(theta_i: f64, eta: f64) -> Option<[[f64; 2]; 2]> {
-    let sin2_t = theta_i.sin().powi(2) / (eta * eta);
-    if sin2_t >= 1.0 {
-        return None;
-    }
-    let c = (theta_i.cos() - eta * (1.0 - sin2_t).sqrt()) / eta;
-    Some([[c, 0.0], [0.0, c]])
+    refraction_scale(theta_i.cos(), eta).map(|c| [[c, 0.0], [0.0, c]])
 }
 
 #[cfg(test)]
@@ -67,5 +74,18 @@ mod tests {
             }
         }
         assert!(refract(1.2, 0.6, 0.0, 0.0).is_none(), "sin θi / η > 1: total internal reflection");
+    }
+
+    #[test]
+    fn jacobian_ratio_at_the_mean_is_belcours_transmission_scale() {
+        // Belcour 2018's s with real cosines: |η cos θt − cos θi| / (2η cos θt) down, |cos θi/η − cos θt| /
+        // (2 cos θi/η) up.
+        for (t, eta) in [(0.0, 1.5), (0.7, 1.5), (1.4, 1.33), (1.2, 2.4)] {
+            let (ci, ct) = (f64::cos(t), (1.0 - f64::sin(t).powi(2) / (eta * eta)).sqrt());
+            let down = refraction_scale(ci, eta).unwrap().abs() / reflection_scale(ct);
+            let up = refraction_scale(ct, 1.0 / eta).unwrap().abs() / reflection_scale(ci);
+            assert!((down - 0.5 * (eta * ct - ci).abs() / (eta * ct)).abs() < 1e-14, "{t} {eta}");
+            assert!((up - 0.5 * (ci / eta - ct).abs() / (ci / eta)).abs() < 1e-14, "{t} {eta}");
+        }
     }
 }
