@@ -85,19 +85,19 @@ impl Cov {
         (l1, l2, sin.atan2(cos))
     }
 
-    /// Eigen-decomposition with the eigenvector of λ₁ ≥ λ₂ as (cos, sin) of its angle in (−π/2, π/2], from the
-    /// half-angle formulas (no trigonometric call, no branch: loops over it vectorize); (v, v, 1, 0) for Σ = vI.
+    /// Eigen-decomposition with the eigenvector of λ₁ ≥ λ₂ as (cos, sin) of its angle in (−π/2, π/2]: the unit
+    /// vector along (Σ_xx − λ₂, Σ_xy), or along (Σ_xy, λ₁ − Σ_xx) when Σ_xx < Σ_yy (no trigonometric call, no branch:
+    /// loops over it vectorize); (v, v, 1, 0) for Σ = vI.
     #[inline(always)]
     pub fn eigen_frame(self) -> (f64, f64, f64, f64) {
         let mean = 0.5 * (self.xx + self.yy);
         let half = 0.5 * (self.xx - self.yy);
         let r = (half * half + self.xy * self.xy).sqrt();
-        let cos_2a = half / r;
-        let cos = (0.5 * (1.0 + cos_2a)).max(0.0).sqrt();
-        let sin = (0.5 * (1.0 - cos_2a)).max(0.0).sqrt();
-        let sin = if self.xy < 0.0 { -sin } else { sin };
+        let (x, y) = if half >= 0.0 { (half + r, self.xy) } else { (self.xy, r - half) };
+        let (x, y) = if x < 0.0 { (-x, -y) } else { (x, y) };
+        let len = (x * x + y * y).sqrt();
         if r > 0.0 {
-            (mean + r, mean - r, cos, sin)
+            (mean + r, mean - r, x / len, y / len)
         } else {
             (mean, mean, 1.0, 0.0)
         }
@@ -227,7 +227,7 @@ struct LobeTable {
 
 /// Table corners of up to BLOCK rows: run index and bilinear weight of each of the four corners, per row.
 struct Corners {
-    index: [[u32; BLOCK]; 4],
+    index: [[i32; BLOCK]; 4],
     weight: [[f64; BLOCK]; 4],
 }
 
@@ -606,14 +606,20 @@ impl Prepared {
     #[inline(always)]
     fn corners(t: &LobeTable, cos_theta: &[f64], x: &[f64], y: &[f64]) -> Corners {
         let mut c = Corners { index: [[0; BLOCK]; 4], weight: [[0.0; BLOCK]; 4] };
-        let (nodes, azimuths) = (t.nodes as u32, t.azimuths as u32);
-        for r in 0..cos_theta.len() {
+        let (n, nodes, azimuths) = (cos_theta.len(), t.nodes as i32, t.azimuths as i32);
+        // Each pass a loop of its own, so that it vectorizes (positions as i32: AVX2 converts f64 to i32 only).
+        let mut v = [0.0; BLOCK];
+        if azimuths > 1 {
+            for r in 0..n {
+                v[r] = pseudo_angle(x[r], y[r]) * (FRAC_1_PI * azimuths as f64);
+            }
+        }
+        for r in 0..n {
             let u = cos_theta[r].clamp(0.0, 1.0).sqrt() * (nodes - 1) as f64;
-            let k = (u as u32).min(nodes - 2);
+            let k = (u as i32).min(nodes - 2);
             let fk = u - k as f64;
-            let v = if azimuths == 1 { 0.0 } else { pseudo_angle(x[r], y[r]) * FRAC_1_PI * azimuths as f64 };
-            let a = (v as u32).min(azimuths - 1);
-            let fa = v - a as f64;
+            let a = (v[r] as i32).min(azimuths - 1);
+            let fa = v[r] - a as f64;
             let b = if a + 1 == azimuths { 0 } else { a + 1 };
             (c.index[0][r], c.weight[0][r]) = (k * azimuths + a, (1.0 - fk) * (1.0 - fa));
             (c.index[1][r], c.weight[1][r]) = ((k + 1) * azimuths + a, fk * (1.0 - fa));
@@ -756,12 +762,11 @@ fn ggx_shapes(
 
 /// A monotonic stand-in for the azimuth φ modulo π, without trigonometric calls: (x, y) folded into the upper
 /// half-plane, then the octant's atan(t) by t (π/4 + 0.273 (1 − t)) (Rajan et al. 2006, within 0.004 rad of φ), so
-/// that table nodes uniform in it are nearly uniform in φ. In [0, π); 0 along the normal.
+/// that table nodes uniform in it are nearly uniform in φ. In [0, π): φ = π folds to 0, and so does the normal.
 #[inline(always)]
 fn pseudo_angle(x: f64, y: f64) -> f64 {
     use std::f64::consts::{FRAC_PI_2, FRAC_PI_4, PI};
-    let flip = y < 0.0 || (y == 0.0 && x < 0.0);
-    let (x, y) = if flip { (-x, -y) } else { (x, y) };
+    let (x, y) = if y < 0.0 { (-x, -y) } else { (x, y) };
     let t = x.abs().min(y) / x.abs().max(y);
     let a = t * (FRAC_PI_4 + 0.273 * (1.0 - t));
     let a = if y > x.abs() { FRAC_PI_2 - a } else { a };
