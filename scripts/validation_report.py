@@ -346,9 +346,10 @@ def belcour_section():
     out += variant_table("belcour", variants, names)
     out += jacobian_rows()
     out += ["", "Reading: the model is exact for a smooth coat over Lambert and close for thin absorbing varnish; it "
-            "degrades towards grazing angles (frozen-cosine transmission scale), for rough coats (Belcour's energies "
-            "conserve R + T = 1 at each interface while single-scattering microfacets lose energy: frosted metal), and "
-            "fails for optically thick scattering slabs (its medium operator is forward single scattering)."]
+            "degrades towards grazing angles (not because of the frozen cosines: the exact Jacobians at the mean do no "
+            "better, table above), for rough coats (Belcour's energies conserve R + T = 1 at each interface while "
+            "single-scattering microfacets lose energy: frosted metal), and fails for optically thick scattering slabs "
+            "(its medium operator is forward single scattering)."]
     return out
 
 
