@@ -606,7 +606,7 @@ impl Prepared {
     #[inline(always)]
     fn corners(t: &LobeTable, cos_theta: &[f64], x: &[f64], y: &[f64]) -> Corners {
         let mut c = Corners { index: [[0; BLOCK]; 4], weight: [[0.0; BLOCK]; 4] };
-        let (n, nodes, azimuths) = (cos_theta.len(), t.nodes as i32, t.azimuths as i32);
+        let (n, azimuths) = (cos_theta.len(), t.azimuths as i32);
         // Each pass a loop of its own, so that it vectorizes (positions as i32: AVX2 converts f64 to i32 only).
         let mut v = [0.0; BLOCK];
         if azimuths > 1 {
@@ -615,9 +615,8 @@ impl Prepared {
             }
         }
         for r in 0..n {
-            let u = cos_theta[r].clamp(0.0, 1.0).sqrt() * (nodes - 1) as f64;
-            let k = (u as i32).min(nodes - 2);
-            let fk = u - k as f64;
+            let (k, fk) = tables::node(cos_theta[r].clamp(0.0, 1.0).sqrt(), t.nodes);
+            let k = k as i32;
             let a = (v[r] as i32).min(azimuths - 1);
             let fa = v[r] - a as f64;
             let b = if a + 1 == azimuths { 0 } else { a + 1 };
@@ -703,12 +702,15 @@ impl Prepared {
             }
         }
         if self.diffuse.is_some() {
-            let (down_at, up_at) = (Self::corners(t, iz, ix, iy), Self::corners(t, oz, ox, oy));
+            // T↓ at θi and T↑ at θo: the lobes' corners serve for wo unless they were found at |wo·h|.
+            let down_at = Self::corners(t, iz, ix, iy);
+            let up_symmetric = self.symmetric.then(|| Self::corners(t, oz, ox, oy));
+            let up_at = up_symmetric.as_ref().unwrap_or(&corners);
             for (r, o) in out.chunks_exact_mut(c).enumerate().filter(|&(r, _)| above[r]) {
                 let at = |corners: &Corners, table: &[f64], ch: usize| {
                     (0..4).map(|q| corners.weight[q][r] * table[corners.index[q][r] as usize * c + ch]).sum::<f64>()
                 };
-                self.add_diffuse(|ch| at(&down_at, &t.t_down, ch), |ch| at(&up_at, &t.t_up, ch), o);
+                self.add_diffuse(|ch| at(&down_at, &t.t_down, ch), |ch| at(up_at, &t.t_up, ch), o);
             }
         }
     }

@@ -49,10 +49,11 @@ pub fn cached(name: &str, len: usize, generate: impl FnOnce() -> Vec<f32>) -> Ve
     data
 }
 
-/// Linear interpolation weights of `x` on `n` uniform nodes over [0, 1], clamped: (lower node, fraction).
-#[inline]
+/// Linear interpolation weights of `x` on `n` uniform nodes over [0, 1], clamped: (lower node, fraction). The node
+/// is found as an i32, which AVX2 converts from f64 in vector lanes, so that loops over it vectorize.
+#[inline(always)]
 pub fn node(x: f64, n: usize) -> (usize, f64) {
     let s = x.clamp(0.0, 1.0) * (n - 1) as f64;
-    let i = (s as usize).min(n - 2);
-    (i, s - i as f64)
+    let i = (s as i32).min(n as i32 - 2);
+    (i as usize, s - i as f64)
 }
