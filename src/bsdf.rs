@@ -2,8 +2,8 @@
 //! dielectric) and rough dielectric transmission (Walter et al. 2007), from either side. All return f without
 //! the cosine; directions point away from the surface (docs/conventions.md).
 
+use crate::optics::distribution::{G2Form, Microfacet};
 use crate::optics::fresnel;
-use crate::optics::microfacet::{G2Form, Microfacet};
 use glam::DVec3;
 
 /// Microfacet reflection without the Fresnel factor: D(h) G2 / (4 |cos θi| |cos θo|) and the cosine wi·h that
@@ -55,7 +55,7 @@ pub fn rough_dielectric(mf: &Microfacet, form: G2Form, eta: f64, wi: DVec3, wo: 
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::optics::microfacet::Distribution;
+    use crate::optics::distribution::Distribution;
 
     fn dir(theta: f64, phi: f64) -> DVec3 {
         DVec3::new(theta.sin() * phi.cos(), theta.sin() * phi.sin(), theta.cos())

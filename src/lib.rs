@@ -6,8 +6,10 @@
 //! Conventions are stated once in docs/conventions.md.
 
 pub mod bsdf;
+pub mod error;
 pub mod models;
 pub mod optics;
+pub mod quadrature;
 pub mod reference;
 pub mod sampling;
 pub mod stack;

@@ -13,8 +13,8 @@
 //! keeps the estimate unbiased; paths reaching MAX_DEPTH are counted and reported.
 
 use crate::optics::diffuse;
+use crate::optics::distribution::{Distribution, G2Form, Microfacet};
 use crate::optics::fresnel;
-use crate::optics::microfacet::{Distribution, G2Form, Microfacet};
 use crate::optics::{reflect, refract};
 use crate::sampling::{cosine_hemisphere, henyey_greenstein, sample_henyey_greenstein, Rng};
 use crate::stack::{Layer, Stack};
@@ -56,23 +56,20 @@ pub struct ChannelStack {
 impl ChannelStack {
     pub fn new(stack: &Stack, channel: usize, dist: Distribution, g2: G2Form) -> ChannelStack {
         let (mut interfaces, mut slabs) = (Vec::new(), Vec::new());
-        let mut eta_above = stack.ext_ior;
-        for layer in &stack.layers {
+        for (layer, rel) in stack.layers.iter().zip(stack.interfaces()) {
             let mf = layer.microfacet(dist);
             match layer {
-                Layer::Dielectric { ior, thickness, sigma_a, sigma_s, g, .. } => {
-                    interfaces.push(Interface { mf: mf.unwrap(), eta: ior[channel] / eta_above });
+                Layer::Dielectric { thickness, sigma_a, sigma_s, g, .. } => {
+                    interfaces.push(Interface { mf: mf.unwrap(), eta: rel.eta[channel] });
                     slabs.push(Slab {
                         thickness: *thickness,
                         sigma_a: sigma_a[channel],
                         sigma_s: sigma_s[channel],
                         g: *g,
                     });
-                    eta_above = ior[channel];
                 }
-                Layer::Conductor { ior, k, .. } => {
-                    let base =
-                        Base::Conductor { mf: mf.unwrap(), eta: ior[channel] / eta_above, k: k[channel] / eta_above };
+                Layer::Conductor { .. } => {
+                    let base = Base::Conductor { mf: mf.unwrap(), eta: rel.eta[channel], k: rel.kappa[channel] };
                     return ChannelStack { interfaces, slabs, base, g2 };
                 }
                 Layer::Diffuse { albedo, roughness } => {

@@ -2,29 +2,8 @@
 //! in one opaque base (conductor or diffuse). Optical constants are resolved per channel (RGB or wavelengths)
 //! before they reach Rust; geometry (roughness, tangent angle, thickness) is shared by all channels.
 
-use crate::optics::microfacet::{Distribution, Microfacet};
-use std::fmt;
-
-#[derive(Debug, Clone, PartialEq)]
-pub enum Error {
-    /// A parameter outside its allowed range (Python ValueError).
-    Value(String),
-}
-
-impl fmt::Display for Error {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        match self {
-            Error::Value(s) => f.write_str(s),
-        }
-    }
-}
-
-pub type Result<T> = std::result::Result<T, Error>;
-
-/// Builds a ValueError message.
-pub fn value_error<T>(msg: impl Into<String>) -> Result<T> {
-    Err(Error::Value(msg.into()))
-}
+use crate::error::{value_error, Result};
+use crate::optics::distribution::{Distribution, Microfacet};
 
 #[derive(Clone, Debug)]
 pub enum Layer {
@@ -46,6 +25,43 @@ pub enum Layer {
 }
 
 impl Layer {
+    /// Checks the layer's parameters against their ranges and `channels` values per colour quantity; messages
+    /// start with `what` (e.g. "layer 0 (Dielectric)").
+    pub fn check(&self, what: &str, channels: usize) -> Result<()> {
+        let p = |param: &str| format!("{what}: {param}");
+        match self {
+            Layer::Dielectric { ior, alpha, angle, thickness, sigma_a, sigma_s, g } => {
+                check_channels(&p("ior"), ior, channels)?;
+                check_range(&p("ior"), ior, 0.0, f64::INFINITY, true, "(0, inf)")?;
+                check_range(&p("roughness"), &[alpha.0, alpha.1], 0.0, 1.0, false, "[0, 1]")?;
+                check_range(&p("angle"), &[*angle], f64::MIN, f64::MAX, false, "(-inf, inf) (finite radians)")?;
+                check_range(&p("thickness"), &[*thickness], 0.0, f64::MAX, false, "[0, inf)")?;
+                check_channels(&p("sigma_a"), sigma_a, channels)?;
+                check_range(&p("sigma_a"), sigma_a, 0.0, f64::MAX, false, "[0, inf)")?;
+                check_channels(&p("sigma_s"), sigma_s, channels)?;
+                check_range(&p("sigma_s"), sigma_s, 0.0, f64::MAX, false, "[0, inf)")?;
+                check_range(&p("g"), &[*g], -1.0, 1.0, true, "(-1, 1)")?;
+                if *g >= 1.0 {
+                    return value_error(format!("{} must be in (-1, 1), got {g}", p("g")));
+                }
+            }
+            Layer::Conductor { ior, k, alpha, angle } => {
+                check_channels(&p("ior"), ior, channels)?;
+                check_range(&p("ior"), ior, 0.0, f64::INFINITY, true, "(0, inf)")?;
+                check_channels(&p("k"), k, channels)?;
+                check_range(&p("k"), k, 0.0, f64::MAX, false, "[0, inf)")?;
+                check_range(&p("roughness"), &[alpha.0, alpha.1], 0.0, 1.0, false, "[0, 1]")?;
+                check_range(&p("angle"), &[*angle], f64::MIN, f64::MAX, false, "(-inf, inf) (finite radians)")?;
+            }
+            Layer::Diffuse { albedo, roughness } => {
+                check_channels(&p("albedo"), albedo, channels)?;
+                check_range(&p("albedo"), albedo, 0.0, 1.0, false, "[0, 1]")?;
+                check_range(&p("roughness"), &[*roughness], 0.0, 1.0, false, "[0, 1]")?;
+            }
+        }
+        Ok(())
+    }
+
     pub fn name(&self) -> &'static str {
         match self {
             Layer::Dielectric { .. } => "Dielectric",
@@ -103,6 +119,10 @@ impl Stack {
                 "layers: a stack needs at least one layer and must end in an opaque base (Conductor or Diffuse)",
             );
         };
+        if let Some(i) = layers[..layers.len() - 1].iter().position(|l| l.is_opaque()) {
+            let name = layers[i].name();
+            return value_error(format!("layer {i} ({name}) is opaque, so it must be the last layer"));
+        }
         if !last.is_opaque() {
             return value_error("layers: the stack has no opaque base; its last layer must be a Conductor or Diffuse");
         }
@@ -112,41 +132,43 @@ impl Stack {
             Layer::Dielectric { .. } => unreachable!(),
         };
         for (i, layer) in layers.iter().enumerate() {
-            let p = |param: &str| format!("layer {i} ({}): {param}", layer.name());
             if layer.is_opaque() && i + 1 != layers.len() {
                 return value_error(format!("layer {i} ({}) is opaque, so it must be the last layer", layer.name()));
             }
-            match layer {
-                Layer::Dielectric { ior, alpha, angle, thickness, sigma_a, sigma_s, g } => {
-                    check_channels(&p("ior"), ior, channels)?;
-                    check_range(&p("ior"), ior, 0.0, f64::INFINITY, true, "(0, inf)")?;
-                    check_range(&p("roughness"), &[alpha.0, alpha.1], 0.0, 1.0, false, "[0, 1]")?;
-                    check_range(&p("angle"), &[*angle], f64::MIN, f64::MAX, false, "finite radians")?;
-                    check_range(&p("thickness"), &[*thickness], 0.0, f64::MAX, false, "[0, inf)")?;
-                    check_channels(&p("sigma_a"), sigma_a, channels)?;
-                    check_range(&p("sigma_a"), sigma_a, 0.0, f64::MAX, false, "[0, inf)")?;
-                    check_channels(&p("sigma_s"), sigma_s, channels)?;
-                    check_range(&p("sigma_s"), sigma_s, 0.0, f64::MAX, false, "[0, inf)")?;
-                    check_range(&p("g"), &[*g], -1.0, 1.0, true, "(-1, 1)")?;
-                    if *g >= 1.0 {
-                        return value_error(format!("{} must be in (-1, 1), got {g}", p("g")));
-                    }
-                }
-                Layer::Conductor { ior, k, alpha, angle } => {
-                    check_channels(&p("ior"), ior, channels)?;
-                    check_range(&p("ior"), ior, 0.0, f64::INFINITY, true, "(0, inf)")?;
-                    check_channels(&p("k"), k, channels)?;
-                    check_range(&p("k"), k, 0.0, f64::MAX, false, "[0, inf)")?;
-                    check_range(&p("roughness"), &[alpha.0, alpha.1], 0.0, 1.0, false, "[0, 1]")?;
-                    check_range(&p("angle"), &[*angle], f64::MIN, f64::MAX, false, "finite radians")?;
-                }
-                Layer::Diffuse { albedo, roughness } => {
-                    check_range(&p("albedo"), albedo, 0.0, 1.0, false, "[0, 1]")?;
-                    check_range(&p("roughness"), &[*roughness], 0.0, 1.0, false, "[0, 1]")?;
-                }
-            }
+            layer.check(&format!("layer {i} ({})", layer.name()), channels)?;
         }
         Ok(Stack { layers, ext_ior, channels })
+    }
+}
+
+/// A layer as the models see it: its optical constants relative to the medium directly above it (per channel).
+pub struct Relative {
+    /// η = n_layer / n_above (dielectrics and conductors); for a diffuse base, n_above / n_outside.
+    pub eta: Vec<f64>,
+    /// κ / n_above (conductors; 0 otherwise).
+    pub kappa: Vec<f64>,
+}
+
+impl Stack {
+    /// Every layer's IOR and κ relative to the medium above it, top to bottom (the one place they are computed).
+    pub fn interfaces(&self) -> Vec<Relative> {
+        let mut above = vec![self.ext_ior; self.channels];
+        let zero = vec![0.0; self.channels];
+        let over = |v: &[f64], above: &[f64]| v.iter().zip(above).map(|(x, a)| x / a).collect::<Vec<f64>>();
+        self.layers
+            .iter()
+            .map(|layer| match layer {
+                Layer::Dielectric { ior, .. } => {
+                    let r = Relative { eta: over(ior, &above), kappa: zero.clone() };
+                    above = ior.clone();
+                    r
+                }
+                Layer::Conductor { ior, k, .. } => Relative { eta: over(ior, &above), kappa: over(k, &above) },
+                Layer::Diffuse { .. } => {
+                    Relative { eta: above.iter().map(|a| a / self.ext_ior).collect(), kappa: zero.clone() }
+                }
+            })
+            .collect()
     }
 }
 
@@ -176,7 +198,8 @@ mod tests {
         let msg = |r: Result<Stack>| r.unwrap_err().to_string();
         assert!(msg(Stack::new(vec![], 1.0)).contains("at least one layer"));
         assert!(msg(Stack::new(vec![coat(0.1)], 1.0)).contains("no opaque base"));
-        assert!(msg(Stack::new(vec![gold(), coat(0.1)], 1.0)).contains("no opaque base"));
+        assert!(msg(Stack::new(vec![gold(), coat(0.1)], 1.0))
+            .contains("layer 0 (Conductor) is opaque, so it must be the last"));
         assert!(
             msg(Stack::new(vec![coat(1.5), gold()], 1.0)).contains("layer 0 (Dielectric): roughness must be in [0, 1]")
         );

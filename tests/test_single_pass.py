@@ -183,10 +183,10 @@ def test_patina_coverage_and_tint(rng):
     wi, wo = random_hemisphere(rng, 100), random_hemisphere(rng, 100)
     p = lamina.materials.patina(extent=0.5, transition=0.1, tint=(1.0, 1.0, 1.0))
     np.testing.assert_allclose(p.eval(wi, wo, 0.9), p.bare.eval(wi, wo, "weidlich_wilkie"), rtol=1e-12)
-    np.testing.assert_allclose(p.eval(wi, wo, 0.1), p.patina.eval(wi, wo, "weidlich_wilkie"), rtol=1e-12)
+    np.testing.assert_allclose(p.eval(wi, wo, 0.1), p.stack.eval(wi, wo, "weidlich_wilkie"), rtol=1e-12)
     # The tint multiplies what the copper under the patina returns: f is linear in it.
     tinted = lamina.materials.Patina(extent=0.5, transition=0.1, tint=(0.5, 0.3, 0.2)).eval(wi, wo, 0.0)
-    layer = p.patina.layers[0]
+    layer = p.stack.layers[0]
     top = lamina.Stack([layer, lamina.Diffuse(0.0)]).eval(wi, wo, "weidlich_wilkie")
     np.testing.assert_allclose(tinted, top + np.array([0.5, 0.3, 0.2]) * (p.eval(wi, wo, 0.0) - top), rtol=1e-9,
                                atol=1e-15)
@@ -199,20 +199,21 @@ def test_patina_coverage_and_tint(rng):
 def test_bad_input_names_the_parameter():
     stack = lamina.materials.suite("gold-clearcoat")
     w = np.array([0.0, 0.0, 1.0])
-    with pytest.raises(ValueError, match="distribution"):
+    with pytest.raises(TypeError, match="model 'steinberg' has no option 'distribution'"):
         stack.eval(w, w, "steinberg", distribution="beckmann")
     with pytest.raises(ValueError, match=r"relative IOR.*\[0.25, 4"):
         lamina.Stack([lamina.Dielectric(5.0), lamina.Diffuse(0.5)]).eval(w, w, "steinberg")
-    with pytest.raises(TypeError, match="unknown model option"):
+    with pytest.raises(TypeError, match="has no option 'lutt'"):
         stack.eval(w, w, "weidlich_wilkie", lutt="fitted")
     with pytest.raises(ValueError, match="lut"):
         stack.eval(w, w, "steinberg", lut="erf")
     with pytest.raises(TypeError, match="precomputed must be a bool"):
         stack.eval(w, w, "weidlich_wilkie", precomputed="yes")
-    with pytest.raises(ValueError, match="flake_normal"):
+    with pytest.raises(TypeError, match="has no option 'flake_normal'"):
         stack.eval(w, w, "steinberg", flake_normal=w, distance=1.0)
-    with pytest.raises(ValueError, match="together"):
-        stack.eval(w, w, "weidlich_wilkie", flake_normal=w)
+    # distance defaults to 1 (no smoothing).
+    assert np.array_equal(stack.eval(w, w, "weidlich_wilkie", flake_normal=w),
+                          stack.eval(w, w, "weidlich_wilkie", flake_normal=w, distance=1.0))
     with pytest.raises(ValueError, match="flake_normal contains NaN"):
         stack.eval(w, w, "weidlich_wilkie", flake_normal=[np.nan, 0, 0], distance=1.0)
     with pytest.raises(ValueError, match="extent must be in"):
@@ -223,9 +224,13 @@ def test_bad_input_names_the_parameter():
         lamina.materials.Patina().eval(w, w, np.nan)
     with pytest.raises(ValueError, match="precomputed"):
         lamina.materials.Patina().eval(w, w, 0.5, precomputed=True)
-    with pytest.raises(ValueError, match="point above the surface"):
-        stack.eval(w, w, "weidlich_wilkie", flake_normal=[0.0, 0.0, -3.0], distance=1.0)
-    with pytest.raises(ValueError, match="flake_normal"):
+    # A base tilted below the horizon reflects nothing (and the smooth coat has no finite lobe at this pair).
+    assert np.all(stack.eval(w, w, "weidlich_wilkie", flake_normal=[0.0, 0.0, -3.0], distance=1.0) == 0)
+    with pytest.raises(ValueError, match=r"flake_normal contains NaN, Inf or a value outside \[-10, 10\]"):
+        stack.eval(w, w, "weidlich_wilkie", flake_normal=[0.0, 0.0, -30.0])
+    with pytest.raises(ValueError, match=r"mask contains NaN, Inf or a value outside \[0, 1\]"):
+        lamina.materials.Patina().eval(w, w, 1.5)
+    with pytest.raises(TypeError, match="has no option 'flake_normal'"):
         stack.eval(w, w, "reference", flake_normal=w, distance=1.0)
     with pytest.raises(ValueError, match="eta must be in"):
         lamina.optics.steinberg_lut(0.5, 0.2, 0.0)

@@ -9,13 +9,16 @@ Evaluate f(wi, wo) of a layer stack on NumPy arrays:
 Conventions (local frame, z = normal, directions pointing away, f without the cosine): docs/conventions.md.
 """
 
-from . import materials, optics
+from . import materials, optics, reference
 from ._lamina import __version__
-from .layers import MODELS, Conductor, Dielectric, Diffuse, Stack
+from .layers import Conductor, Dielectric, Diffuse
+from .catalogue import MODELS, models
 from .optics import jacobian_reflect, jacobian_refract
 from .spectrum import RGB_WAVELENGTHS, Spectrum, to_srgb, to_xyz, xyz_weights
+from .stack import Stack
 
 __all__ = [
-    "MODELS", "Conductor", "Dielectric", "Diffuse", "Stack", "Spectrum", "RGB_WAVELENGTHS",
-    "to_xyz", "to_srgb", "xyz_weights", "materials", "optics", "jacobian_reflect", "jacobian_refract", "__version__",
+    "MODELS", "models", "Conductor", "Dielectric", "Diffuse", "Stack", "Spectrum", "RGB_WAVELENGTHS",
+    "to_xyz", "to_srgb", "xyz_weights", "materials", "optics", "reference", "jacobian_reflect", "jacobian_refract",
+    "__version__",
 ]

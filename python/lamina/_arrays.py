@@ -10,7 +10,10 @@ import numpy as np
 
 def as_real_array(name: str, x) -> np.ndarray:
     """`x` as a float32 or float64 array (integers are promoted to float64); TypeError for anything else."""
-    a = np.asarray(x)
+    try:
+        a = np.asarray(x)
+    except ValueError as e:  # ragged nested sequences
+        raise ValueError(f"{name} must be a rectangular array: {e}") from None
     if a.dtype.kind in "iu":
         return a.astype(np.float64)
     if a.dtype not in (np.float32, np.float64):

@@ -5,7 +5,8 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from . import MODELS, materials
+from . import materials
+from .catalogue import MODELS
 
 
 def main(argv=None) -> int:

@@ -2,12 +2,13 @@
 
 from __future__ import annotations
 
+from numbers import Real
+
 import numpy as np
 
-from . import _lamina
-from ._arrays import broadcast
-from .layers import Colour, Conductor, Dielectric, Diffuse, Roughness, Stack, _channels
+from .layers import Colour, Conductor, Dielectric, Diffuse, Roughness, _channels
 from .spectrum import IOR_MATERIALS, RGB_WAVELENGTHS, ior
+from .stack import Stack
 
 
 def metal(material: str, roughness: Roughness = 0.1, angle: float = 0.0) -> Conductor:
@@ -36,6 +37,8 @@ def plastic(albedo=(0.6, 0.1, 0.08), ior: float = 1.5, roughness: Roughness = 0.
 def preset(name: str) -> Stack:
     """A named material for demos and plots (single interfaces, and layered stacks for the layered models); see
     PRESETS."""
+    if not isinstance(name, str):
+        raise TypeError(f"name must be a string, one of {sorted(PRESETS)}, got {name!r}")
     try:
         return PRESETS[name]()
     except KeyError:
@@ -96,6 +99,12 @@ def flake_normals(uv, density: float = 200.0, spread: float = 0.5, seed: int = 0
     uv = np.asarray(uv, dtype=np.float64)
     if uv.ndim == 0 or uv.shape[-1] != 2 or not np.all(np.isfinite(uv)):
         raise ValueError(f"uv must be a finite array of shape (..., 2), got shape {uv.shape}")
+    if not isinstance(density, Real) or isinstance(density, bool):
+        raise TypeError(f"density must be a number, got {density!r}")
+    if not isinstance(spread, Real) or isinstance(spread, bool):
+        raise TypeError(f"spread must be a number, got {spread!r}")
+    if not (isinstance(seed, (int, np.integer)) and not isinstance(seed, bool)):
+        raise TypeError(f"seed must be an integer in [0, 2**64), got {seed!r}")
     if not (density > 0 and np.isfinite(density)):
         raise ValueError(f"density must be in (0, inf), got {density}")
     if not (0 <= spread <= 10):
@@ -124,33 +133,37 @@ _RGB_UM = np.asarray(RGB_WAVELENGTHS) / 1000.0
 
 class Patina:
     """Elek 2010's copper patina for model="weidlich_wilkie" (Elek's RGB n, κ of Cu and Cu2O: ELEK2010): a cuprite
-    (Cu2O) layer of `thickness` µm over copper,
-    where a grayscale `mask` covers it. Per element, coverage w = 1 − smoothstep(extent − transition,
-    extent + transition, mask); f = (1 − w) f_bare + w f_patina, the patina layer's roughness and IOR going from the
-    bare copper surface's (no layer) to the patina's with w, and the copper under it tarnished by lerp(1, tint, w).
-    The cuprite absorbs σa = 4πκ/λ (Elek's RGB κ) and scatters `scattering` per µm, which gives the diffuse patina
-    term T₁₂ T₂₁ (1 − a) σs/(σa + σs) / (π η²): the light the layer does not transmit, a its transmittance (1/η²
-    with the default `eta2`)."""
+    (Cu2O) layer of `thickness` µm over copper, where a grayscale `mask` covers it. Per element, coverage
+    w = 1 − smoothstep(extent − transition, extent + transition, mask); f = (1 − w) f_bare + w f_patina, the patina
+    layer's roughness and IOR going from the bare copper surface's (no layer) to the patina's with w, and the copper
+    under it tarnished by lerp(1, tint, w). The cuprite absorbs σa = 4πκ/λ (Elek's RGB κ) and scatters `scattering`
+    per µm, which gives the diffuse patina term T₁₂ T₂₁ (1 − a) σs/(σa + σs) / (π η²): the light the layer does not
+    transmit, a its transmittance (1/η² with the default `eta2`).
+
+    `stack` is the patina stack; `eval` evaluates it with the per-element input `mask` and the options `extent`,
+    `transition` and `tint` of model "weidlich_wilkie"."""
 
     def __init__(self, extent: float = 0.5, transition: float = 0.1, thickness: float = 0.5,
                  roughness: Roughness = 0.35, scattering: float = 2.0, copper_roughness: Roughness = 0.15,
                  tint: Colour = (0.75, 0.45, 0.3)):
         n_cu, k_cu = ELEK2010["Cu"]
         n_p, k_p = ELEK2010["Cu2O"]
-        self.bare = Stack([Conductor(n_cu, k_cu, copper_roughness)])
         sigma_a = tuple((4 * np.pi * np.asarray(k_p) / _RGB_UM).tolist())
-        self.patina = Stack([Dielectric(n_p, roughness, thickness=thickness, sigma_a=sigma_a, sigma_s=scattering),
-                             Conductor(n_cu, k_cu, copper_roughness)])
-        self.extent, self.transition, self.tint = float(extent), float(transition), tint
+        self.stack = Stack([Dielectric(n_p, roughness, thickness=thickness, sigma_a=sigma_a, sigma_s=scattering),
+                            Conductor(n_cu, k_cu, copper_roughness)])
+        self.bare = Stack(self.stack.layers[1:])
+        self.params = dict(extent=extent, transition=transition, tint=tuple(_channels("tint", tint, None)))
         self.eval([0, 0, 1.0], [0, 0, 1.0], 0.0)  # validates the parameters
+
+    def __repr__(self) -> str:
+        p = self.params
+        return (f"Patina(extent={p['extent']!r}, transition={p['transition']!r}, tint={p['tint']!r}, "
+                f"stack={self.stack!r})")
 
     def eval(self, wi, wo, mask, **options) -> np.ndarray:
         """f(wi, wo) where the grayscale map has value `mask` (in [0, 1]); wi, wo (..., 3) and mask (...) broadcast.
         Returns (..., 3) RGB. Options as for Stack.eval with model="weidlich_wilkie"."""
-        wi, wo, mask = broadcast(wi=(wi, 3), wo=(wo, 3), mask=(mask, 0))
-        return _lamina.eval_patina(self.bare._resolve(None), self.patina._resolve(None), 1.0,
-                                   _channels("tint", self.tint, None), self.extent, self.transition, wi, wo, mask,
-                                   options)
+        return self.stack.eval(wi, wo, "weidlich_wilkie", mask=mask, **{**self.params, **options})
 
 
 def patina(extent: float = 0.5, transition: float = 0.1, **params) -> Patina:
@@ -160,6 +173,8 @@ def patina(extent: float = 0.5, transition: float = 0.1, **params) -> Patina:
 
 def suite(name: str) -> Stack:
     """A material of the validation suite (see SUITE)."""
+    if not isinstance(name, str):
+        raise TypeError(f"name must be a string, one of {sorted(SUITE)}, got {name!r}")
     try:
         return SUITE[name]()
     except KeyError:

@@ -78,7 +78,10 @@ def visible_normal_pdf(wi, m, roughness, angle=0.0, distribution="ggx") -> np.nd
 
 
 def _channel_list(name, x) -> list[float]:
-    return [float(v) for v in np.atleast_1d(np.asarray(x, dtype=np.float64)).ravel()]
+    try:
+        return [float(v) for v in np.atleast_1d(np.asarray(x, dtype=np.float64)).ravel()]
+    except (TypeError, ValueError):
+        raise TypeError(f"{name} must be a number or one number per channel, got {x!r}") from None
 
 
 def rough_conductor(wi, wo, eta, k, roughness, angle=0.0, distribution="ggx", g2="height_correlated") -> np.ndarray:

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .layers import Stack
+from .stack import Stack
 
 
 def in_plane_directions(theta_deg) -> np.ndarray:

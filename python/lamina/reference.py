@@ -1,111 +1,22 @@
-"""Monte Carlo ground truth (brute-force random walk in Rust): directional albedo and binned lobes of any stack.
-
-Paths run in fixed chunks of CHUNK, so a long run shows a progress bar (tqdm, if installed) and stops cleanly on
-Ctrl-C between chunks; results depend only on (seed, samples), never on the thread count or the chunking.
-"""
+"""The Monte Carlo reference as a tool: the suite's cached reference values on a fixed direction grid, and an on-disk
+cache for any reference run (the estimators themselves are in _reference.py; Stack.reference calls them)."""
 
 from __future__ import annotations
 
 import hashlib
 import json
 import os
-import warnings
 from pathlib import Path
 
 import numpy as np
 
-from . import _lamina
+from . import _lamina, optics
+from ._reference import CHUNK, WORK_PER_CALL, f_estimate, tally
+from .layers import Dielectric
+from .materials import suite
 
-#: Paths per direction and call into Rust (fixed: the order of the partial sums is part of what makes results
-#: reproducible), and the most (pair x path) estimates per call, which bounds how long Ctrl-C waits.
-CHUNK = 1 << 18
-WORK_PER_CALL = 1 << 20
-
-
-def _progress(total: int, progress):
-    if progress is False or (progress is None and total < 4 * CHUNK):
-        return None
-    try:
-        from tqdm.auto import tqdm
-    except ImportError:
-        return None
-    return tqdm(total=total, unit="path", unit_scale=True, desc="lamina reference")
-
-
-def _finish(truncated: int):
-    if truncated:
-        warnings.warn(f"{truncated} reference paths reached the depth limit ({_lamina.REFERENCE_MAX_DEPTH} events) "
-                      "and were dropped; the estimate is biased low by at most their share", stacklevel=4)
-
-
-def _mean_stderr(s, s2, samples: int):
-    """Mean of `samples` estimates and its standard error from their sum and sum of squares."""
-    mean = s / samples
-    return mean, np.sqrt(np.maximum(s2 / samples - mean**2, 0.0) / (samples - 1))
-
-
-def _check(samples, seed):
-    if not isinstance(samples, (int, np.integer)) or samples < 2:
-        raise ValueError(f"samples must be an integer >= 2, got {samples!r}")
-    if not isinstance(seed, (int, np.integer)) or seed < 0:
-        raise ValueError(f"seed must be a non-negative integer, got {seed!r}")
-
-
-def f_estimate(layers, ext_ior, wi_rows, wo_rows, samples: int, seed: int, progress=None, **options):
-    """NEE estimate of f for each (wi, wo) row pair: mean and standard error, (pairs, channels) each."""
-    _check(samples, seed)
-    bar = _progress(len(wi_rows) * samples, progress)
-    wi_list, wo_list = wi_rows.tolist(), wo_rows.tolist()
-    pairs_per_call = max(1, WORK_PER_CALL // min(samples, CHUNK))
-    sums = []
-    truncated = 0
-    try:
-        for lo in range(0, len(wi_list), pairs_per_call):
-            hi = min(lo + pairs_per_call, len(wi_list))
-            s = s2 = 0.0
-            for first in range(0, samples, CHUNK):
-                n = min(CHUNK, samples - first)
-                a, b, t = _lamina.reference_f(layers, ext_ior, wi_list[lo:hi], wo_list[lo:hi], first, n, int(seed),
-                                              **options)
-                s, s2 = s + np.asarray(a), s2 + np.asarray(b)
-                truncated += int(np.sum(t))
-                if bar is not None:
-                    bar.update(n * (hi - lo))
-            sums.append((s, s2))
-    finally:
-        if bar is not None:
-            bar.close()
-    _finish(truncated)
-    s, s2 = np.concatenate([a for a, _ in sums]), np.concatenate([b for _, b in sums])
-    return _mean_stderr(s, s2, samples)
-
-
-def tally(layers, ext_ior, wi_rows: np.ndarray, samples: int, seed: int, bins=(1, 1), progress=None, **options):
-    """Mean escaping energy per path and its standard error, shape (rows, channels, n_theta * n_phi) each."""
-    _check(samples, seed)
-    n_theta, n_phi = bins
-    bar = _progress(len(wi_rows) * samples, progress)
-    means, errors, truncated = [], [], 0
-    try:
-        for wi in wi_rows:
-            s = s2 = None
-            for first in range(0, samples, CHUNK):
-                n = min(CHUNK, samples - first)
-                a, b, t = _lamina.reference_tally(layers, ext_ior, [float(x) for x in wi], first, n, int(seed),
-                                                  n_theta, n_phi, **options)
-                a, b = np.asarray(a), np.asarray(b)
-                s, s2 = (a, b) if s is None else (s + a, s2 + b)
-                truncated += int(np.sum(t))
-                if bar is not None:
-                    bar.update(n)
-            mean, err = _mean_stderr(s, s2, samples)
-            means.append(mean)
-            errors.append(err)
-    finally:
-        if bar is not None:
-            bar.close()
-    _finish(truncated)
-    return np.array(means), np.array(errors)
+__all__ = ["CHUNK", "WORK_PER_CALL", "SUITE_THETAS", "cache_dir", "cache_key", "cached_reference", "f_estimate",
+           "suite_directions", "suite_reference", "suite_reference_albedo", "tally"]
 
 
 #: Incident zenith angles (degrees) of the suite's reference grid.
@@ -158,8 +69,6 @@ def cached_reference(stack, wi, wo, samples: int = 100_000, seed: int = 0, progr
 def suite_reference(name: str, samples: int = 100_000, seed: int = 0, progress=None):
     """Reference f and standard error of suite material `name` on the suite grid (cached): (wi, wo, f, stderr)
     with f and stderr of shape (5, 30, 3)."""
-    from .materials import suite
-
     wi, wo = suite_directions()
     f, se = cached_reference(suite(name), wi, wo, samples=samples, seed=seed, progress=progress)
     return wi, wo, f, se
@@ -169,10 +78,6 @@ def suite_reference_albedo(name: str, samples: int = 200_000, seed: int = 0):
     """Brute-force reference albedo of suite material `name` at SUITE_THETAS (light in the x–z plane), with a smooth
     top's specular delta removed (the analytic models do not return Dirac lobes): (wi (5, 3), albedo (5, channels),
     stderr (5, channels))."""
-    from . import optics
-    from .layers import Dielectric
-    from .materials import suite
-
     t = np.radians(SUITE_THETAS)
     wi = np.stack([np.sin(t), np.zeros_like(t), np.cos(t)], -1)
     stack = suite(name)

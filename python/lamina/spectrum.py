@@ -26,8 +26,12 @@ class Spectrum:
 
     wavelengths_nm: np.ndarray
     values: np.ndarray
+    #: Where the values come from (a measured table's name), for messages.
+    name: str = ""
+    #: False for measured tables: evaluating outside the measured range raises ValueError.
+    extrapolate: bool = True
 
-    def __init__(self, wavelengths_nm, values):
+    def __init__(self, wavelengths_nm, values, name: str = "", extrapolate: bool = True):
         wl = np.asarray(wavelengths_nm, dtype=np.float64)
         v = np.asarray(values, dtype=np.float64)
         if wl.ndim != 1 or v.shape != wl.shape or wl.size < 1:
@@ -38,9 +42,24 @@ class Spectrum:
             raise ValueError("wavelengths_nm must be positive and strictly increasing")
         object.__setattr__(self, "wavelengths_nm", wl)
         object.__setattr__(self, "values", v)
+        object.__setattr__(self, "name", str(name))
+        object.__setattr__(self, "extrapolate", bool(extrapolate))
 
     def __call__(self, wavelengths_nm) -> np.ndarray:
-        return np.interp(np.asarray(wavelengths_nm, dtype=np.float64), self.wavelengths_nm, self.values)
+        wl = np.asarray(wavelengths_nm, dtype=np.float64)
+        lo, hi = self.wavelengths_nm[0], self.wavelengths_nm[-1]
+        if not self.extrapolate and np.any((wl < lo) | (wl > hi)):
+            outside = wl[(wl < lo) | (wl > hi)]
+            raise ValueError(f"wavelengths: {outside.min():g} nm lies outside the measured range {lo:g}-{hi:g} nm of "
+                             f"{self.name or 'this spectrum'}")
+        return np.interp(wl, self.wavelengths_nm, self.values)
+
+    def __eq__(self, other) -> bool:
+        return (isinstance(other, Spectrum) and np.array_equal(self.wavelengths_nm, other.wavelengths_nm)
+                and np.array_equal(self.values, other.values) and self.extrapolate == other.extrapolate)
+
+    def __hash__(self) -> int:
+        return hash((self.wavelengths_nm.tobytes(), self.values.tobytes(), self.extrapolate))
 
     def __repr__(self) -> str:
         return f"Spectrum({self.wavelengths_nm[0]:g}-{self.wavelengths_nm[-1]:g} nm, {self.wavelengths_nm.size} samples)"
@@ -54,7 +73,8 @@ def ior(material: str) -> tuple[Spectrum, Spectrum]:
     lines = [ln for ln in (_DATA / "ior" / f"{material}.csv").read_text().splitlines() if ln and ln[0] != "#"]
     assert lines[0] == "wavelength_nm,n,k", f"unexpected header in {material}.csv"
     t = np.loadtxt(lines[1:], delimiter=",")
-    return Spectrum(t[:, 0], t[:, 1]), Spectrum(t[:, 0], t[:, 2])
+    return (Spectrum(t[:, 0], t[:, 1], f"n of {material}", extrapolate=False),
+            Spectrum(t[:, 0], t[:, 2], f"k of {material}", extrapolate=False))
 
 
 @lru_cache(maxsize=1)

@@ -1,12 +1,23 @@
 //! `model="microfacet"`: exact evaluation of the stacks that have a closed form — a single opaque interface
 //! (rough conductor, Lambert, Oren–Nayar) and a smooth dielectric coat over a Lambertian base.
+//!
+//! | Parameter      | Type   | Default             | Description                                                    |
+//! |----------------|--------|---------------------|----------------------------------------------------------------|
+//! | `distribution` | string | `ggx`               | microfacet distribution, `ggx` or `beckmann`                   |
+//! | `g2`           | string | `height_correlated` | masking-shadowing: `height_correlated`, `separable`, `v_cavity` |
+//! | `fresnel`      | string | `exact`             | conductor Fresnel: `exact`, `schlick`, `lazanyi`                |
+//!
+//! Sampling: the conductor's visible normals (Heitz 2018); the diffuse forms by the cosine. A smooth conductor or
+//! the smooth coat's reflection are Dirac lobes (`specular`).
 
-use super::{Options, BLOCK};
+use super::options::{DISTRIBUTION, FRESNEL, G2};
+use super::{InputSpec, Model, ModelInfo, OptionSpec, Options, Properties, Proposal, BLOCK};
 use crate::bsdf;
+use crate::error::{value_error, Result};
 use crate::optics::diffuse;
+use crate::optics::distribution::{Distribution, G2Form, Microfacet};
 use crate::optics::fresnel::{self, FresnelForm};
-use crate::optics::microfacet::{Distribution, G2Form, Microfacet};
-use crate::stack::{value_error, Layer, Result, Stack};
+use crate::stack::{Layer, Stack};
 use glam::DVec3;
 use std::f64::consts::FRAC_1_PI;
 
@@ -19,24 +30,33 @@ pub enum Prepared {
     CoatLambert { albedo: Vec<f64>, eta: Vec<f64>, f_int: Vec<f64> },
 }
 
+pub const INFO: ModelInfo = ModelInfo {
+    name: "microfacet",
+    summary: "exact single interfaces (rough conductor, Lambert, Oren–Nayar) and a smooth coat over Lambert",
+    options: &[DISTRIBUTION, G2, FRESNEL] as &[OptionSpec],
+    inputs: &[] as &[InputSpec],
+    properties: Properties { reciprocal: true, energy_conserving: true, anisotropic: true, spectral: true },
+    prepare: |stack, opts| Ok(Box::new(prepare(stack, opts)?)),
+};
+
 pub fn prepare(stack: &Stack, opts: &Options) -> Result<Prepared> {
-    let rel = |v: &[f64]| v.iter().map(|x| x / stack.ext_ior).collect::<Vec<f64>>();
+    let top = stack.interfaces().swap_remove(0);
     match stack.layers.as_slice() {
-        [layer @ Layer::Conductor { ior, k, .. }] => Ok(Prepared::Conductor {
+        [layer @ Layer::Conductor { .. }] => Ok(Prepared::Conductor {
             mf: layer.microfacet(opts.distribution).expect("conductors have an interface"),
             g2: opts.g2,
             fresnel: opts.fresnel,
-            eta: rel(ior),
-            k: rel(k),
+            eta: top.eta,
+            k: top.kappa,
         }),
         [Layer::Diffuse { albedo, roughness }] => Ok(Prepared::Diffuse { albedo: albedo.clone(), sigma: *roughness }),
-        [Layer::Dielectric { ior, alpha: (ax, ay), thickness, sigma_a, sigma_s, .. }, Layer::Diffuse { albedo, roughness }]
+        [Layer::Dielectric { alpha: (ax, ay), thickness, sigma_a, sigma_s, .. }, Layer::Diffuse { albedo, roughness }]
             if *ax == 0.0
                 && *ay == 0.0
                 && *roughness == 0.0
                 && (*thickness == 0.0 || sigma_a.iter().chain(sigma_s).all(|&s| s == 0.0)) =>
         {
-            let eta = rel(ior);
+            let eta = top.eta;
             let f_int = eta.iter().map(|e| fresnel::diffuse_reflectance(1.0 / e)).collect();
             Ok(Prepared::CoatLambert { albedo: albedo.clone(), eta, f_int })
         }
@@ -48,7 +68,7 @@ pub fn prepare(stack: &Stack, opts: &Options) -> Result<Prepared> {
 }
 
 impl Prepared {
-    pub fn eval(&self, wi: DVec3, wo: DVec3, out: &mut [f64]) {
+    fn eval(&self, wi: DVec3, wo: DVec3, out: &mut [f64]) {
         out.fill(0.0);
         if wi.z <= 0.0 || wo.z <= 0.0 {
             return;
@@ -76,16 +96,49 @@ impl Prepared {
     }
 }
 
+impl Model for Prepared {
+    fn eval_block(&self, wi: [&[f64]; 3], wo: [&[f64]; 3], _: &super::Inputs, out: &mut [f64]) {
+        super::simd(|| self.eval_columns(wi, wo, out))
+    }
+
+    fn proposals(&self, _wo: DVec3) -> Vec<(f64, Proposal)> {
+        match self {
+            Prepared::Conductor { mf, .. } if mf.is_smooth() => vec![],
+            Prepared::Conductor { mf, .. } => vec![(1.0, Proposal::Reflection(*mf))],
+            _ => vec![(1.0, Proposal::Cosine)],
+        }
+    }
+
+    fn specular(&self, wo: DVec3, out: &mut [f64]) {
+        out.fill(0.0);
+        if wo.z <= 0.0 {
+            return;
+        }
+        match self {
+            Prepared::Conductor { mf, fresnel, eta, k, .. } if mf.is_smooth() => {
+                for (c, o) in out.iter_mut().enumerate() {
+                    *o = fresnel.conductor(wo.z, eta[c], k[c]);
+                }
+            }
+            Prepared::CoatLambert { eta, .. } => {
+                for (o, e) in out.iter_mut().zip(eta) {
+                    *o = fresnel::dielectric(wo.z, *e);
+                }
+            }
+            _ => {}
+        }
+    }
+}
+
 impl Prepared {
-    /// `eval` for a block of columns (see models::Evaluator::eval_block). The rough conductor runs in two passes,
-    /// the geometry per row and then the Fresnel term per channel over the whole block, a branch-free loop that
-    /// vectorizes.
+    /// f for a block of columns. The rough conductor runs in two passes, the geometry per row and then the Fresnel
+    /// term per channel over the whole block, a branch-free loop that vectorizes.
     #[inline(always)]
-    pub fn eval_block(&self, wi: [&[f64]; 3], wo: [&[f64]; 3], out: &mut [f64]) {
+    fn eval_columns(&self, wi: [&[f64]; 3], wo: [&[f64]; 3], out: &mut [f64]) {
         let n = wi[0].len();
         let k = out.len() / n;
         let Prepared::Conductor { mf, g2, fresnel, eta, k: kappa } = self else {
-            return super::eval_rows(wi, wo, out, |wi, wo, o| self.eval(wi, wo, o));
+            return super::eval_rows(wi, wo, out, |_, wi, wo, o| self.eval(wi, wo, o));
         };
         let (mut geo, mut cos_h) = ([0.0; BLOCK], [0.0; BLOCK]);
         let (geo, cos_h) = (&mut geo[..n], &mut cos_h[..n]);

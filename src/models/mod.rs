@@ -1,84 +1,105 @@
-//! The BRDF models behind `Stack.eval(model=...)`. A model is prepared from the stack and its options (per-channel
-//! constants, distributions, tables), then evaluated for many direction pairs; each evaluation writes one value per
-//! channel. The last few prepared models are kept, so that repeated calls on one material (a renderer's loop, a
-//! notebook's sweep) build their tables once.
+//! The BRDF models behind `Stack.eval(model=...)`, as one catalogue. Each model is one module that opens with its
+//! parameter table and ends in an `INFO`: name, summary, options, per-element inputs, properties and `prepare`. A
+//! prepared model evaluates f for blocks of direction pairs, proposes lobes for importance sampling (`sample.rs`
+//! turns them into `sample` and `pdf`) and reports its Dirac (mirror) reflection. Adding a model: one module and one
+//! line in `CATALOGUE`.
+//!
+//! The last few prepared models are kept, so that repeated calls on one material (a renderer's loop, a notebook's
+//! sweep) build their tables once.
 
 pub mod belcour;
 pub mod microfacet;
+pub mod options;
+pub mod sample;
 pub mod single_pass;
 pub mod steinberg;
 pub mod weidlich_wilkie;
 
-use crate::optics::fresnel::FresnelForm;
-use crate::optics::microfacet::{Distribution, G2Form};
-use crate::stack::{value_error, Result, Stack};
+pub use options::{OptionKind, OptionSpec, Options, Value};
+
+use crate::error::{value_error, Result};
+use crate::optics::distribution::Microfacet;
+use crate::stack::Stack;
 use glam::DVec3;
 use std::sync::{Arc, Mutex};
 
-/// Rows per evaluation block (`Evaluator::eval_block`).
+/// Rows per evaluation block (`Model::eval_block`).
 pub const BLOCK: usize = 64;
 
-/// Names accepted by `model=`, in the order `lamina.MODELS` lists them.
-pub const MODELS: &[&str] = &["microfacet", "belcour", "steinberg", "weidlich_wilkie"];
+/// The models, in the order `lamina.MODELS` lists them.
+pub const CATALOGUE: &[&ModelInfo] = &[&microfacet::INFO, &belcour::INFO, &steinberg::INFO, &weidlich_wilkie::INFO];
 
+/// A per-element input a model accepts beside the directions (a texture's values, flake normals).
 #[derive(Clone, Copy, Debug)]
-pub struct Options {
-    pub distribution: Distribution,
-    pub g2: G2Form,
-    pub fresnel: FresnelForm,
-    /// Belcour's symmetric (reciprocal) variant: statistics at |wo·h| instead of cos θo.
-    pub symmetric: bool,
-    /// Belcour 2018 choices where the paper and the reference code differ (see models/belcour.rs).
-    pub belcour: belcour::Variant,
-    /// Belcour 2018: interpolate the adding-doubling results from a table over cos θ (fast), built when the model
-    /// is prepared, instead of running it for every evaluation.
-    pub belcour_table: bool,
-    /// Steinberg: the fitted closed forms instead of the tabulated integrals.
-    pub steinberg_fitted: bool,
-    /// Weidlich–Wilkie / Elek: Elek's precomputed Fresnel and Beckmann tables.
-    pub elek_precomputed: bool,
-    /// Single-pass models: each layer at least as rough as the one above (Elek's m₂ ≥ m₁).
-    pub clamp_roughness: bool,
-    /// Single-pass models: the radiance compression 1/η² through each dielectric interface.
-    pub eta2: bool,
+pub struct InputSpec {
+    pub name: &'static str,
+    /// Values per element: 1 (a scalar map) or 3 (a vector).
+    pub width: usize,
+    /// Allowed range of every value (closed).
+    pub range: (f64, f64),
+    pub doc: &'static str,
 }
 
-impl Default for Options {
-    fn default() -> Self {
-        Options {
-            distribution: Distribution::Ggx,
-            g2: G2Form::HeightCorrelated,
-            fresnel: FresnelForm::Exact,
-            symmetric: false,
-            belcour: belcour::Variant::default(),
-            belcour_table: true,
-            steinberg_fitted: false,
-            elek_precomputed: false,
-            clamp_roughness: true,
-            eta2: true,
-        }
+/// What a user chooses a model by.
+#[derive(Clone, Copy, Debug)]
+pub struct Properties {
+    /// f(wi, wo) = f(wo, wi) for every stack.
+    pub reciprocal: bool,
+    /// Directional albedo ≤ 1 for every stack.
+    pub energy_conserving: bool,
+    /// Anisotropic roughness and rotated tangent frames.
+    pub anisotropic: bool,
+    /// Per-wavelength optical constants (spectral evaluation) as well as RGB.
+    pub spectral: bool,
+}
+
+/// One model of the catalogue.
+pub struct ModelInfo {
+    pub name: &'static str,
+    pub summary: &'static str,
+    pub options: &'static [OptionSpec],
+    pub inputs: &'static [InputSpec],
+    pub properties: Properties,
+    pub prepare: fn(&Stack, &Options) -> Result<Box<dyn Model>>,
+}
+
+/// The per-element input columns of one block, in the order of the model's `inputs`: None where not given; a
+/// scalar input fills column 0.
+pub type Inputs<'a> = [Option<[&'a [f64]; 3]>];
+
+/// A lobe of the sampling mixture of a model: a GGX/Beckmann reflection lobe sampled by its visible normals, or the
+/// cosine-weighted hemisphere (diffuse terms).
+#[derive(Clone, Copy, Debug)]
+pub enum Proposal {
+    Reflection(Microfacet),
+    Cosine,
+}
+
+/// A model prepared for one stack and its options.
+pub trait Model: Send + Sync {
+    /// f for a block of n ≤ BLOCK direction pairs given as columns (wi[c][r] is component c of row r) and the
+    /// block's per-element inputs, into `out` (n rows of one value per channel, zeroed by the caller).
+    fn eval_block(&self, wi: [&[f64]; 3], wo: [&[f64]; 3], inputs: &Inputs, out: &mut [f64]);
+
+    /// The sampling mixture for the viewing direction wo (unit, above the surface): (weight, lobe) pairs, weights
+    /// roughly the lobes' energies. Any mixture is unbiased (the sample weight is f·cos/pdf); a good one is cheap.
+    fn proposals(&self, wo: DVec3) -> Vec<(f64, Proposal)>;
+
+    /// The Dirac (mirror) reflection at wo per channel: what smooth interfaces reflect, which f does not contain.
+    fn specular(&self, wo: DVec3, out: &mut [f64]);
+
+    /// Checks which per-element inputs are given (in the order of the model's `inputs`) before an evaluation.
+    fn check_inputs(&self, _given: &[bool]) -> Result<()> {
+        Ok(())
     }
 }
 
-impl Options {
-    /// The defaults of `model`: Weidlich–Wilkie / Elek use Beckmann with the V-cavity G (Torrance–Sparrow); the
-    /// other models GGX with height-correlated Smith.
-    pub fn for_model(model: &str) -> Self {
-        match model {
-            "weidlich_wilkie" => {
-                Options { distribution: Distribution::Beckmann, g2: G2Form::VCavity, ..Options::default() }
-            }
-            _ => Options::default(),
-        }
-    }
-}
-
-/// A model prepared for one stack: evaluates f(wi, wo) for unit directions in the local frame.
-pub enum Evaluator {
-    Microfacet(microfacet::Prepared),
-    Belcour(belcour::Prepared),
-    Steinberg(steinberg::Prepared),
-    WeidlichWilkie(weidlich_wilkie::Prepared),
+/// The catalogue entry of `name`, or a ValueError listing every model.
+pub fn info(name: &str) -> Result<&'static ModelInfo> {
+    CATALOGUE.iter().copied().find(|m| m.name == name).ok_or_else(|| {
+        let names: Vec<&str> = CATALOGUE.iter().map(|m| m.name).chain(["reference"]).collect();
+        crate::error::Error::Value(format!("model must be one of {names:?}, got {name:?}"))
+    })
 }
 
 /// How many prepared models `prepare` keeps (most recently used first).
@@ -86,8 +107,10 @@ const CACHED: usize = 16;
 
 /// Prepares `model` for `stack`, or explains why the model cannot represent the stack; a model prepared by one of
 /// the last CACHED calls with equal arguments is reused.
-pub fn prepare(model: &str, stack: &Stack, opts: &Options) -> Result<Arc<Evaluator>> {
-    static CACHE: Mutex<Vec<(String, Arc<Evaluator>)>> = Mutex::new(Vec::new());
+pub fn prepare(model: &str, stack: &Stack, opts: &Options) -> Result<Arc<dyn Model>> {
+    type Cache = Mutex<Vec<(String, Arc<dyn Model>)>>;
+    static CACHE: Cache = Mutex::new(Vec::new());
+    let info = info(model)?;
     // Debug prints every f64 in its shortest round-trip form: equal keys mean equal arguments.
     let key = format!("{model}|{stack:?}|{opts:?}");
     let hit = {
@@ -95,68 +118,35 @@ pub fn prepare(model: &str, stack: &Stack, opts: &Options) -> Result<Arc<Evaluat
         let k = cache.iter().position(|(k, _)| *k == key);
         k.map(|k| {
             let entry = cache.remove(k);
-            let evaluator = entry.1.clone();
+            let prepared = entry.1.clone();
             cache.insert(0, entry);
-            evaluator
+            prepared
         })
     };
-    if let Some(evaluator) = hit {
-        return Ok(evaluator);
+    if let Some(prepared) = hit {
+        return Ok(prepared);
     }
-    let evaluator = Arc::new(prepare_uncached(model, stack, opts)?);
+    if opts.tint.len() != 1 && opts.tint.len() != stack.channels {
+        return value_error(format!(
+            "tint has {} values but the stack has {} channels",
+            opts.tint.len(),
+            stack.channels
+        ));
+    }
+    let prepared: Arc<dyn Model> = Arc::from((info.prepare)(stack, opts)?);
     let mut cache = CACHE.lock().unwrap_or_else(|e| e.into_inner());
-    cache.insert(0, (key, evaluator.clone()));
+    cache.insert(0, (key, prepared.clone()));
     cache.truncate(CACHED);
-    Ok(evaluator)
+    Ok(prepared)
 }
 
-fn prepare_uncached(model: &str, stack: &Stack, opts: &Options) -> Result<Evaluator> {
-    match model {
-        "microfacet" => Ok(Evaluator::Microfacet(microfacet::prepare(stack, opts)?)),
-        "belcour" => Ok(Evaluator::Belcour(belcour::prepare(stack, opts)?)),
-        "steinberg" => Ok(Evaluator::Steinberg(steinberg::prepare(stack, opts)?)),
-        "weidlich_wilkie" => Ok(Evaluator::WeidlichWilkie(weidlich_wilkie::prepare(stack, opts)?)),
-        _ => value_error(format!("model must be one of {MODELS:?}, got {model:?}")),
-    }
-}
-
-impl Evaluator {
-    /// f(wi, wo) for every channel into `out` (length = number of channels).
-    pub fn eval(&self, wi: DVec3, wo: DVec3, out: &mut [f64]) {
-        match self {
-            Evaluator::Microfacet(p) => p.eval(wi, wo, out),
-            Evaluator::Belcour(p) => p.eval(wi, wo, out),
-            Evaluator::Steinberg(p) => p.eval(wi, wo, out),
-            Evaluator::WeidlichWilkie(p) => p.eval(wi, wo, out),
-        }
-    }
-
-    /// f for a block of n ≤ BLOCK direction pairs given as columns (wi[c][r] is component c of row r) into `out`
-    /// (n rows of one value per channel), compiled for AVX2 + FMA when the CPU has them (4 f64 lanes in the loops
-    /// that vectorize). Rust never contracts a * b + c into an FMA by itself, so both paths give identical bits.
-    pub fn eval_block(&self, wi: [&[f64]; 3], wo: [&[f64]; 3], out: &mut [f64]) {
-        #[cfg(target_arch = "x86_64")]
-        if has_avx2() {
-            // SAFETY: the CPU supports every feature the function is compiled for.
-            return unsafe { self.eval_block_avx2(wi, wo, out) };
-        }
-        self.eval_block_portable(wi, wo, out)
-    }
-
-    #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx2,fma")]
-    unsafe fn eval_block_avx2(&self, wi: [&[f64]; 3], wo: [&[f64]; 3], out: &mut [f64]) {
-        self.eval_block_portable(wi, wo, out)
-    }
-
-    #[inline(always)]
-    fn eval_block_portable(&self, wi: [&[f64]; 3], wo: [&[f64]; 3], out: &mut [f64]) {
-        match self {
-            Evaluator::Microfacet(p) => p.eval_block(wi, wo, out),
-            Evaluator::Belcour(p) => p.eval_block(wi, wo, out),
-            _ => eval_rows(wi, wo, out, |wi, wo, o| self.eval(wi, wo, o)),
-        }
-    }
+/// f(wi, wo) of one pair (rows of a block of one).
+pub fn eval_one(model: &dyn Model, wi: DVec3, wo: DVec3, inputs: &[Option<[f64; 3]>], out: &mut [f64]) {
+    let cols: Vec<[[f64; 1]; 3]> = inputs.iter().map(|v| v.unwrap_or_default().map(|x| [x])).collect();
+    let block: Vec<Option<[&[f64]; 3]>> =
+        inputs.iter().zip(&cols).map(|(v, c)| v.map(|_| [&c[0][..], &c[1][..], &c[2][..]])).collect();
+    out.fill(0.0);
+    model.eval_block([&[wi.x], &[wi.y], &[wi.z]], [&[wo.x], &[wo.y], &[wo.z]], &block, out);
 }
 
 /// Row r of a block's direction columns.
@@ -165,13 +155,29 @@ pub fn row(w: [&[f64]; 3], r: usize) -> DVec3 {
     DVec3::new(w[0][r], w[1][r], w[2][r])
 }
 
-/// A block evaluated row by row with `eval(wi, wo, out_row)`: the block path of what has no vectorized form.
+/// A block evaluated row by row with `eval(r, wi, wo, out_row)`: the block path of what has no vectorized form.
 #[inline(always)]
-pub fn eval_rows(wi: [&[f64]; 3], wo: [&[f64]; 3], out: &mut [f64], eval: impl Fn(DVec3, DVec3, &mut [f64])) {
+pub fn eval_rows(wi: [&[f64]; 3], wo: [&[f64]; 3], out: &mut [f64], eval: impl Fn(usize, DVec3, DVec3, &mut [f64])) {
     let k = out.len() / wi[0].len();
     for (r, o) in out.chunks_exact_mut(k).enumerate() {
-        eval(row(wi, r), row(wo, r), o);
+        eval(r, row(wi, r), row(wo, r), o);
     }
+}
+
+/// Runs `f` compiled for AVX2 + FMA when the CPU has them (4 f64 lanes in the loops that vectorize), else as is.
+/// Rust never contracts a * b + c into an FMA by itself, so both paths give identical bits.
+#[inline(always)]
+pub fn simd<R>(f: impl FnOnce() -> R) -> R {
+    #[cfg(target_arch = "x86_64")]
+    if has_avx2() {
+        #[target_feature(enable = "avx2,fma")]
+        unsafe fn avx2<R>(f: impl FnOnce() -> R) -> R {
+            f()
+        }
+        // SAFETY: the CPU supports every feature the function is compiled for.
+        return unsafe { avx2(f) };
+    }
+    f()
 }
 
 /// Whether the CPU has AVX2 and FMA (checked once, then cached by std).

@@ -11,15 +11,19 @@
 //! each interface, which both publications omit, is lamina's option `eta2` (on by default: measured in
 //! docs/validation.md).
 
-use super::Options;
+use super::{Options, Proposal};
 use crate::optics::diffuse;
+use crate::optics::distribution::{Distribution, G2Form, Microfacet};
 use crate::optics::fresnel::FresnelForm;
-use crate::optics::microfacet::{Distribution, G2Form, Microfacet};
 use crate::sampling::orthonormal_basis;
 use crate::stack::{Layer, Stack};
 use crate::tables::elek::FresnelTable;
 use glam::DVec3;
 use std::f64::consts::FRAC_1_PI;
+
+/// Share of the sampling mixture always given to the cosine lobe, so that the pdf covers every direction where a
+/// single-pass model's f is non-zero (its deeper lobes sit at refracted directions the outside lobes only approach).
+pub const DEFENSIVE: f64 = 0.05;
 
 /// A rough (or smooth) interface with its relative IOR per channel (below / above) and κ for conductors; `table`
 /// holds Elek's precomputed Fresnel table per channel when that variant is used.
@@ -56,36 +60,32 @@ pub enum SpLayer {
 /// The stack as single-pass layers. With `clamp_roughness` each layer is at least as rough as the one above
 /// (Elek 2010's m₂ ≥ m₁: a rough coat blurs what lies beneath, which a single pass cannot otherwise express).
 pub fn layers(stack: &Stack, dist: Distribution, clamp_roughness: bool) -> Vec<SpLayer> {
-    let mut above = vec![stack.ext_ior; stack.channels];
     let mut rough_above = (0.0f64, 0.0f64);
     let mut out = Vec::with_capacity(stack.layers.len());
-    for layer in &stack.layers {
-        let iface = |alpha: (f64, f64), angle: f64, n: &[f64], k: &[f64], conductor: bool| {
+    for (layer, rel) in stack.layers.iter().zip(stack.interfaces()) {
+        let iface = |alpha: (f64, f64), angle: f64, conductor: bool| {
             let alpha = if clamp_roughness { (alpha.0.max(rough_above.0), alpha.1.max(rough_above.1)) } else { alpha };
             Interface {
                 mf: Microfacet::new(dist, alpha.0, alpha.1, angle),
-                eta: n.iter().zip(&above).map(|(n, a)| n / a).collect(),
-                kappa: k.iter().zip(&above).map(|(k, a)| k / a).collect(),
+                eta: rel.eta.clone(),
+                kappa: rel.kappa.clone(),
                 conductor,
                 table: Vec::new(),
             }
         };
         match layer {
-            Layer::Dielectric { ior, alpha, angle, thickness, sigma_a, sigma_s, .. } => {
+            Layer::Dielectric { alpha, angle, thickness, sigma_a, sigma_s, .. } => {
                 let sigma_t: Vec<f64> = sigma_a.iter().zip(sigma_s).map(|(a, s)| a + s).collect();
                 let albedo = sigma_s.iter().zip(&sigma_t).map(|(s, t)| if *t > 0.0 { s / t } else { 0.0 }).collect();
                 out.push(SpLayer::Dielectric {
-                    iface: iface(*alpha, *angle, ior, &vec![0.0; ior.len()], false),
+                    iface: iface(*alpha, *angle, false),
                     thickness: *thickness,
                     sigma_t,
                     albedo,
                 });
-                above = ior.clone();
                 rough_above = (rough_above.0.max(alpha.0), rough_above.1.max(alpha.1));
             }
-            Layer::Conductor { ior, k, alpha, angle } => {
-                out.push(SpLayer::Conductor(iface(*alpha, *angle, ior, k, true)))
-            }
+            Layer::Conductor { alpha, angle, .. } => out.push(SpLayer::Conductor(iface(*alpha, *angle, true))),
             Layer::Diffuse { albedo, roughness } => {
                 out.push(SpLayer::Diffuse { albedo: albedo.clone(), sigma: *roughness })
             }
@@ -263,6 +263,79 @@ impl Walk {
                     }
                 }
             }
+        }
+    }
+}
+
+impl Walk {
+    /// The energies of the walk's terms for the viewing direction wo, one estimate per term, and what smooth
+    /// interfaces reached through smooth ones reflect as a Dirac lobe (`mirror`, per channel). Estimates, not the
+    /// model: Fresnel at the macro-surface cosine, Snell at the mean IOR, Beer–Lambert along the refracted direction
+    /// both ways; they weight the sampling mixture, whose samples the model's own f then weighs.
+    fn terms(&self, wo: DVec3, mirror: &mut [f64]) -> Vec<(f64, Proposal)> {
+        let channels = mirror.len();
+        mirror.fill(0.0);
+        let mean = |f: &dyn Fn(usize) -> f64| (0..channels).map(f).sum::<f64>() / channels as f64;
+        let mut weight = vec![1.0; channels];
+        let (mut cos, mut smooth_above) = (wo.z, true);
+        let mut out = Vec::new();
+        for layer in &self.layers {
+            match layer {
+                SpLayer::Dielectric { iface, thickness, sigma_t, albedo } => {
+                    let f: Vec<f64> = (0..channels).map(|c| iface.fresnel(self.fresnel, cos, c)).collect();
+                    if iface.mf.is_smooth() {
+                        if smooth_above {
+                            (0..channels).for_each(|c| mirror[c] += weight[c] * f[c]);
+                        }
+                    } else {
+                        out.push((mean(&|c| weight[c] * f[c]), Proposal::Reflection(iface.mf)));
+                        smooth_above = false;
+                    }
+                    let eta = mean(&|c| iface.eta[c]);
+                    let sin_t = (1.0 - cos * cos).max(0.0).sqrt() / eta;
+                    if sin_t >= 1.0 {
+                        return out;
+                    }
+                    cos = (1.0 - sin_t * sin_t).sqrt();
+                    let k: Vec<f64> =
+                        (0..channels).map(|c| (-2.0 * sigma_t[c] * thickness / cos.max(1e-9)).exp()).collect();
+                    let t: Vec<f64> = (0..channels).map(|c| weight[c] * (1.0 - f[c]) * (1.0 - f[c])).collect();
+                    out.push((mean(&|c| t[c] * (1.0 - k[c]) * albedo[c]), Proposal::Cosine));
+                    (0..channels).for_each(|c| weight[c] = t[c] * k[c]);
+                }
+                SpLayer::Conductor(iface) => {
+                    let f = |c: usize| weight[c] * iface.fresnel(self.fresnel, cos, c);
+                    if !iface.mf.is_smooth() {
+                        out.push((mean(&f), Proposal::Reflection(iface.mf)));
+                    } else if smooth_above {
+                        (0..channels).for_each(|c| mirror[c] += f(c));
+                    }
+                }
+                SpLayer::Diffuse { albedo, .. } => out.push((mean(&|c| weight[c] * albedo[c]), Proposal::Cosine)),
+            }
+        }
+        out
+    }
+
+    /// The sampling mixture for wo: each rough interface's reflection lobe and the diffuse terms, weighted by their
+    /// estimated energies, plus the defensive cosine share.
+    pub fn proposals(&self, wo: DVec3, channels: usize) -> Vec<(f64, Proposal)> {
+        let mut mirror = vec![0.0; channels];
+        let mut lobes: Vec<(f64, Proposal)> =
+            self.terms(wo, &mut mirror).into_iter().filter(|(w, _)| *w > 0.0).collect();
+        let total: f64 = lobes.iter().map(|(w, _)| w).sum();
+        if total > 0.0 {
+            lobes.push((DEFENSIVE * total / (1.0 - DEFENSIVE), Proposal::Cosine));
+        }
+        lobes
+    }
+
+    /// The Dirac reflection at wo per channel (smooth interfaces seen through smooth ones).
+    pub fn specular(&self, wo: DVec3, out: &mut [f64]) {
+        if wo.z > 0.0 {
+            self.terms(wo, out);
+        } else {
+            out.fill(0.0);
         }
     }
 }

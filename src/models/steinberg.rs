@@ -7,24 +7,53 @@
 //! direction looks the tables up with the projected roughness α(φ) of its azimuth in the layer's tangent frame —
 //! the roughness that the Smith masking of that direction sees — and stays in its plane of incidence. The lobes
 //! themselves use the full anisotropic D and G2.
+//!
+//! | Parameter         | Type   | Default             | Description                                                 |
+//! |-------------------|--------|---------------------|-------------------------------------------------------------|
+//! | `g2`              | string | `height_correlated` | masking-shadowing of the lobes                              |
+//! | `fresnel`         | string | `exact`             | Fresnel form of the lobes                                   |
+//! | `lut`             | string | `tabulated`         | `tabulated` integrals or the article's `fitted` closed forms |
+//! | `clamp_roughness` | bool   | `true`              | Elek's m₂ ≥ m₁; `false` for the published form              |
+//! | `eta2`            | bool   | `true`              | radiance compression 1/η²; `false` for the published form   |
+//!
+//! The distribution is GGX (the tables are GGX). Sampling: the shared single-pass mixture (models/single_pass.rs).
 
+use super::options::{CLAMP_ROUGHNESS, ETA2, FRESNEL, G2};
 use super::single_pass::{refracted_up, Interface, Passage, SpLayer, Transport, Walk, PLAIN_BASE};
-use super::Options;
+use super::{InputSpec, Model, ModelInfo, OptionKind, OptionSpec, Options, Properties, Proposal};
 use crate::bsdf;
-use crate::optics::microfacet::Distribution;
-use crate::stack::{value_error, Result, Stack};
+use crate::error::{value_error, Result};
+use crate::optics::distribution::Distribution;
+use crate::stack::Stack;
 use crate::tables::steinberg::{self as lut, steinberg};
 use glam::DVec3;
 
 pub struct Prepared {
     walk: Walk,
     fitted: bool,
+    channels: usize,
 }
 
+pub const INFO: ModelInfo = ModelInfo {
+    name: "steinberg",
+    summary: "Steinberg's multi-layered GGX: one pass, mean transmissions and refractions from tables",
+    options: &[
+        G2,
+        FRESNEL,
+        OptionSpec {
+            name: "lut",
+            kind: OptionKind::Choice { choices: &["tabulated", "fitted"], default: "tabulated" },
+            doc: "transmission and refraction: lamina's tabulated integrals or the article's fitted closed forms",
+        },
+        CLAMP_ROUGHNESS,
+        ETA2,
+    ] as &[OptionSpec],
+    inputs: &[] as &[InputSpec],
+    properties: Properties { reciprocal: false, energy_conserving: false, anisotropic: true, spectral: true },
+    prepare: |stack, opts| Ok(Box::new(prepare(stack, opts)?)),
+};
+
 pub fn prepare(stack: &Stack, opts: &Options) -> Result<Prepared> {
-    if opts.distribution != Distribution::Ggx {
-        return value_error("distribution: model 'steinberg' is defined for 'ggx' only (its tables are GGX)");
-    }
     let walk = Walk::new(stack, Distribution::Ggx, opts);
     for (i, layer) in walk.layers.iter().enumerate() {
         if let SpLayer::Dielectric { iface, .. } = layer {
@@ -39,7 +68,7 @@ pub fn prepare(stack: &Stack, opts: &Options) -> Result<Prepared> {
         }
     }
     steinberg(); // generate or load the tables outside the parallel evaluation
-    Ok(Prepared { walk, fitted: opts.steinberg_fitted })
+    Ok(Prepared { walk, fitted: opts.steinberg_fitted, channels: stack.channels })
 }
 
 impl Transport for Prepared {
@@ -70,8 +99,16 @@ impl Transport for Prepared {
     }
 }
 
-impl Prepared {
-    pub fn eval(&self, wi: DVec3, wo: DVec3, out: &mut [f64]) {
-        self.walk.eval(self, &self.walk.layers, wi, wo, &[PLAIN_BASE], out);
+impl Model for Prepared {
+    fn eval_block(&self, wi: [&[f64]; 3], wo: [&[f64]; 3], _: &super::Inputs, out: &mut [f64]) {
+        super::eval_rows(wi, wo, out, |_, wi, wo, o| self.walk.eval(self, &self.walk.layers, wi, wo, &[PLAIN_BASE], o))
+    }
+
+    fn proposals(&self, wo: DVec3) -> Vec<(f64, Proposal)> {
+        self.walk.proposals(wo, self.channels)
+    }
+
+    fn specular(&self, wo: DVec3, out: &mut [f64]) {
+        self.walk.specular(wo, out)
     }
 }

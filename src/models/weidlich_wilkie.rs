@@ -9,17 +9,92 @@
 //! Car paint: a per-sample base normal normalize(flake + max(distance, 1) ẑ) (Elek's distance-based smoothing).
 //! Copper patina: `eval_patina`.
 
+//!
+//! | Parameter         | Type   | Default    | Description                                                          |
+//! |-------------------|--------|------------|----------------------------------------------------------------------|
+//! | `distribution`    | string | `beckmann` | microfacet distribution, `beckmann` or `ggx`                         |
+//! | `g2`              | string | `v_cavity` | masking-shadowing (Torrance–Sparrow's V-cavity by default)           |
+//! | `fresnel`         | string | `exact`    | `exact`, `schlick` or Elek's `lazanyi`                               |
+//! | `precomputed`     | bool   | `false`    | Elek's precomputed Fresnel and Beckmann tables                       |
+//! | `clamp_roughness` | bool   | `true`     | Elek's m₂ ≥ m₁; `false` for the published form                       |
+//! | `eta2`            | bool   | `true`     | radiance compression 1/η²; `false` for the published form            |
+//! | `extent`          | float  | 0.5        | patina: smoothstep centre over the `mask` values                     |
+//! | `transition`      | float  | 0.1        | patina: smoothstep half-width                                        |
+//! | `tint`            | floats | 1          | patina: tarnish of the base under the patina, per channel            |
+//!
+//! Per-element inputs: `flake_normal` (..., 3) and `distance` (...) tilt the base normal to
+//! normalize(flake + max(distance, 1) ẑ) (car paint; a base tilted below the horizon reflects nothing); `mask`
+//! (...) in [0, 1] covers the surface with the stack's top layer, the patina (`Patina`). Sampling: the shared
+//! single-pass mixture (models/single_pass.rs).
+
+use super::options::{OptionKind, CLAMP_ROUGHNESS, DISTRIBUTIONS, ETA2, FRESNEL, G2_FORMS};
 use super::single_pass::{self, refracted_up, Base, Interface, Passage, SpLayer, Transport, Walk};
-use super::Options;
+use super::{eval_rows, InputSpec, Inputs, Model, ModelInfo, OptionSpec, Options, Properties, Proposal};
 use crate::bsdf;
-use crate::optics::microfacet::Distribution;
-use crate::stack::{value_error, Layer, Result, Stack};
+use crate::error::{value_error, Result};
+use crate::optics::distribution::Distribution;
+use crate::stack::{Layer, Stack};
 use crate::tables::elek::beckmann_table;
 use glam::DVec3;
+
+pub const INFO: ModelInfo = ModelInfo {
+    name: "weidlich_wilkie",
+    summary: "Weidlich–Wilkie 2007 as adapted by Elek 2010: one recursive pass, car-paint flakes, copper patina",
+    options: &[
+        OptionSpec {
+            name: "distribution",
+            kind: OptionKind::Choice { choices: DISTRIBUTIONS, default: "beckmann" },
+            doc: "microfacet distribution",
+        },
+        OptionSpec {
+            name: "g2",
+            kind: OptionKind::Choice { choices: G2_FORMS, default: "v_cavity" },
+            doc: "masking-shadowing (Torrance–Sparrow's V-cavity by default)",
+        },
+        FRESNEL,
+        OptionSpec {
+            name: "precomputed",
+            kind: OptionKind::Flag { default: false },
+            doc: "Elek's precomputed Fresnel (128 samples) and Beckmann (512 x 512) tables",
+        },
+        CLAMP_ROUGHNESS,
+        ETA2,
+        OptionSpec {
+            name: "extent",
+            kind: OptionKind::Number { lo: 0.0, hi: 1.0, default: 0.5 },
+            doc: "patina (with mask): coverage 1 − smoothstep(extent − transition, extent + transition, mask)",
+        },
+        OptionSpec {
+            name: "transition",
+            kind: OptionKind::Number { lo: 0.0, hi: 1.0, default: 0.1 },
+            doc: "patina (with mask): half-width of the smoothstep",
+        },
+        OptionSpec {
+            name: "tint",
+            kind: OptionKind::Channels { lo: 0.0, hi: 1.0, default: 1.0 },
+            doc: "patina (with mask): tarnish of the base under the patina, per channel, lerp(1, tint, coverage)",
+        },
+    ] as &[OptionSpec],
+    inputs: &[
+        InputSpec {
+            name: "flake_normal",
+            width: 3,
+            range: (-10.0, 10.0),
+            doc: "car-paint flake vector; the base normal is normalize(flake + max(distance, 1) ẑ)",
+        },
+        InputSpec { name: "distance", width: 1, range: (0.0, f64::MAX), doc: "viewing distance smoothing the flakes" },
+        InputSpec { name: "mask", width: 1, range: (0.0, 1.0), doc: "patina map: where the top layer covers the base" },
+    ],
+    properties: Properties { reciprocal: false, energy_conserving: false, anisotropic: true, spectral: true },
+    prepare: |stack, opts| Ok(Box::new(prepare(stack, opts)?)),
+};
 
 pub struct Prepared {
     walk: Walk,
     precomputed: bool,
+    channels: usize,
+    /// The patina form of the stack (its top layer over the rest), when the top layer is a dielectric.
+    patina: Option<Patina>,
 }
 
 pub fn prepare(stack: &Stack, opts: &Options) -> Result<Prepared> {
@@ -33,7 +108,11 @@ pub fn prepare(stack: &Stack, opts: &Options) -> Result<Prepared> {
         }
         beckmann_table();
     }
-    Ok(Prepared { walk, precomputed })
+    let patina = match &stack.layers[..] {
+        [Layer::Dielectric { .. }, base] if !precomputed => Some(Patina::new(base, stack, opts)?),
+        _ => None,
+    };
+    Ok(Prepared { walk, precomputed, channels: stack.channels, patina })
 }
 
 impl Transport for Prepared {
@@ -69,27 +148,59 @@ impl Transport for Prepared {
     }
 }
 
-impl Prepared {
-    pub fn eval(&self, wi: DVec3, wo: DVec3, out: &mut [f64]) {
-        self.walk.eval(self, &self.walk.layers, wi, wo, &[single_pass::PLAIN_BASE], out);
+impl Model for Prepared {
+    fn eval_block(&self, wi: [&[f64]; 3], wo: [&[f64]; 3], inputs: &Inputs, out: &mut [f64]) {
+        let input = |j: usize| inputs.get(j).copied().flatten();
+        let (flake, distance, mask) = (input(0), input(1), input(2));
+        eval_rows(wi, wo, out, |r, wi, wo, o| {
+            let normal = flake.map(|f| {
+                let d = distance.map_or(1.0, |d| d[0][r]).max(1.0);
+                let n = (DVec3::new(f[0][r], f[1][r], f[2][r]) + d * DVec3::Z).normalize();
+                if n.z > 0.0 {
+                    n
+                } else {
+                    -DVec3::Z
+                } // a base tilted below the horizon reflects nothing
+            });
+            match (mask, &self.patina) {
+                (Some(m), Some(p)) => p.eval(self, wi, wo, m[0][r], normal, o),
+                _ => self.walk.eval(self, &self.walk.layers, wi, wo, &[Base { normal, tint: 1.0 }], o),
+            }
+        })
     }
 
-    /// Car paint: the base evaluated about a flake normal `flake` smoothed by the viewing `distance`.
-    pub fn eval_flake(&self, wi: DVec3, wo: DVec3, flake: DVec3, distance: f64, out: &mut [f64]) {
-        let n = (flake + distance.max(1.0) * DVec3::Z).normalize();
-        self.walk.eval(self, &self.walk.layers, wi, wo, &[Base { normal: Some(n), tint: 1.0 }], out);
+    fn check_inputs(&self, given: &[bool]) -> Result<()> {
+        if given.get(2) == Some(&true) && self.patina.is_none() {
+            return value_error(if self.precomputed {
+                "mask: the patina's IOR changes per element, so it has no precomputed tables (precomputed=False)"
+            } else {
+                "mask: a patina stack is a Dielectric layer (the patina) over an opaque base"
+            });
+        }
+        Ok(())
+    }
+
+    fn proposals(&self, wo: DVec3) -> Vec<(f64, Proposal)> {
+        self.walk.proposals(wo, self.channels)
+    }
+
+    fn specular(&self, wo: DVec3, out: &mut [f64]) {
+        self.walk.specular(wo, out)
     }
 }
 
-/// The copper-patina material (Elek 2010): a bare stack and a patina stack whose top layer is the patina.
+/// Elek 2010's copper patina: the stack's top dielectric layer (the patina) covers the rest (the bare surface)
+/// where a grayscale mask says so.
 pub struct Patina {
-    pub bare: Prepared,
-    pub patina: Prepared,
+    /// The bare surface: the stack without its top layer.
+    pub bare: Walk,
+    /// The stack without the roughness clamp, which is applied per element against the interpolated patina.
+    pub patina: Walk,
     /// Elek's m₂ ≥ m₁ against the interpolated patina roughness.
     pub clamp: bool,
     /// The bare top roughness: where the patina layer's roughness starts.
     pub bare_alpha: (f64, f64),
-    /// Tarnish tone multiplying the base under the patina, per channel.
+    /// Tarnish tone multiplying the base under the patina, per channel (or one for all).
     pub tint: Vec<f64>,
     pub extent: f64,
     pub transition: f64,
@@ -105,42 +216,20 @@ pub fn smoothstep(a: f64, b: f64, x: f64) -> f64 {
 }
 
 impl Patina {
-    pub fn new(
-        bare: &Stack,
-        patina: &Stack,
-        tint: Vec<f64>,
-        extent: f64,
-        transition: f64,
-        opts: &Options,
-    ) -> Result<Self> {
-        if !matches!(patina.layers[..], [Layer::Dielectric { .. }, _]) {
-            return value_error("patina: the patina stack must be the patina (a Dielectric layer) over an opaque base");
-        }
-        if bare.channels != patina.channels {
-            return value_error(format!(
-                "patina: the bare stack has {} channels but the patina stack has {}",
-                bare.channels, patina.channels
-            ));
-        }
-        if opts.elek_precomputed {
-            return value_error("precomputed: the patina's IOR changes per element, so it has no precomputed tables");
-        }
-        if tint.len() != patina.channels {
-            return value_error(format!("tint has {} channels but the stack has {}", tint.len(), patina.channels));
-        }
-        let bare_alpha = match bare.layers.first() {
-            Some(Layer::Dielectric { alpha, .. } | Layer::Conductor { alpha, .. }) => *alpha,
+    fn new(base: &Layer, stack: &Stack, opts: &Options) -> Result<Self> {
+        let bare = Stack::new(vec![base.clone()], stack.ext_ior)?;
+        let bare_alpha = match base {
+            Layer::Dielectric { alpha, .. } | Layer::Conductor { alpha, .. } => *alpha,
             _ => (0.0, 0.0),
         };
         Ok(Patina {
-            bare: prepare(bare, opts)?,
-            // The roughness clamp is applied per element, against the patina's interpolated roughness.
-            patina: prepare(patina, &Options { clamp_roughness: false, ..*opts })?,
+            bare: Walk::new(&bare, opts.distribution, opts),
+            patina: Walk::new(stack, opts.distribution, &Options { clamp_roughness: false, ..opts.clone() }),
             clamp: opts.clamp_roughness,
             bare_alpha,
-            tint,
-            extent,
-            transition,
+            tint: opts.tint.clone(),
+            extent: opts.extent,
+            transition: opts.transition,
         })
     }
 
@@ -151,16 +240,17 @@ impl Patina {
 
     /// f = (1 − w) f_bare + w f_patina, where the patina layer's roughness and IOR go from the bare surface's (the
     /// outside medium's IOR: no layer) to the patina's with w, and the base is tinted by lerp(1, tint, w).
-    pub fn eval(&self, wi: DVec3, wo: DVec3, mask: f64, out: &mut [f64]) {
+    /// (`normal`: the base's tilted normal, car paint.)
+    fn eval(&self, model: &Prepared, wi: DVec3, wo: DVec3, mask: f64, normal: Option<DVec3>, out: &mut [f64]) {
         let w = self.coverage(mask);
         let mut bare = vec![0.0; out.len()];
         if w < 1.0 {
-            self.bare.eval(wi, wo, &mut bare);
+            self.bare.eval(model, &self.bare.layers, wi, wo, &[Base { normal, tint: 1.0 }], &mut bare);
         }
         out.fill(0.0);
         if w > 0.0 {
-            let [SpLayer::Dielectric { iface, thickness, sigma_t, albedo }, base] = &self.patina.walk.layers[..] else {
-                unreachable!("checked in Patina::new")
+            let [SpLayer::Dielectric { iface, thickness, sigma_t, albedo }, base] = &self.patina.layers[..] else {
+                unreachable!("a patina is a dielectric over a base")
             };
             let lerp = |a: f64, b: f64| a + w * (b - a);
             // The patina's relative IOR over the outside goes from 1 (no layer) to its own; the base's relative
@@ -198,8 +288,8 @@ impl Patina {
                 SpLayer::Diffuse { albedo, sigma } => SpLayer::Diffuse { albedo: albedo.clone(), sigma: *sigma },
                 SpLayer::Dielectric { .. } => unreachable!("checked in Patina::new"),
             };
-            let tint: Vec<Base> = self.tint.iter().map(|t| Base { normal: None, tint: lerp(1.0, *t) }).collect();
-            self.patina.walk.eval(&self.patina, &[top, base], wi, wo, &tint, out);
+            let tint: Vec<Base> = self.tint.iter().map(|t| Base { normal, tint: lerp(1.0, *t) }).collect();
+            self.patina.eval(model, &[top, base], wi, wo, &tint, out);
         }
         for (o, b) in out.iter_mut().zip(&bare) {
             *o = (1.0 - w) * b + w * *o;

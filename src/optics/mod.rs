@@ -2,9 +2,9 @@
 //! Conventions (docs/conventions.md): local frame with z = normal, directions point away from the surface.
 
 pub mod diffuse;
+pub mod distribution;
 pub mod fresnel;
 pub mod jacobian;
-pub mod microfacet;
 
 use glam::DVec3;
 

@@ -4,8 +4,8 @@
 //! m uniform in [0, 1]; bilinear interpolation). The D table takes ~10 ms to build, so it is built per process and
 //! not cached on disk.
 
-use super::node;
-use crate::optics::microfacet::MIN_ALPHA;
+use super::Grid;
+use crate::optics::distribution::MIN_ALPHA;
 use std::f64::consts::PI;
 use std::sync::OnceLock;
 
@@ -13,16 +13,16 @@ pub const FRESNEL_SAMPLES: usize = 128;
 pub const D_SIZE: usize = 512;
 
 /// F(cos θ) sampled at 128 cosines uniform in [0, 1].
-pub struct FresnelTable([f32; FRESNEL_SAMPLES]);
+pub struct FresnelTable(Grid<1>);
 
 impl FresnelTable {
     pub fn new(f: impl Fn(f64) -> f64) -> Self {
-        FresnelTable(std::array::from_fn(|i| f(i as f64 / (FRESNEL_SAMPLES - 1) as f64) as f32))
+        let data = (0..FRESNEL_SAMPLES).map(|i| f(i as f64 / (FRESNEL_SAMPLES - 1) as f64) as f32).collect();
+        FresnelTable(Grid::new([FRESNEL_SAMPLES], 1, data))
     }
 
     pub fn lookup(&self, cos_theta: f64) -> f64 {
-        let (i, t) = node(cos_theta, FRESNEL_SAMPLES);
-        (1.0 - t) * self.0[i] as f64 + t * self.0[i + 1] as f64
+        self.0.value([cos_theta])
     }
 }
 
@@ -37,15 +37,11 @@ fn beckmann(cos_h: f64, m: f64) -> f64 {
 }
 
 /// [m][u] with u = cos⁸θh.
-pub struct BeckmannTable(Vec<f32>);
+pub struct BeckmannTable(Grid<2>);
 
 impl BeckmannTable {
     pub fn lookup(&self, cos_h: f64, m: f64) -> f64 {
-        let (i, fi) = node(m, D_SIZE);
-        let (j, fj) = node(cos_h.max(0.0).powi(8), D_SIZE);
-        let at = |a: usize, b: usize| self.0[a * D_SIZE + b] as f64;
-        (1.0 - fi) * ((1.0 - fj) * at(i, j) + fj * at(i, j + 1))
-            + fi * ((1.0 - fj) * at(i + 1, j) + fj * at(i + 1, j + 1))
+        self.0.value([m, cos_h.max(0.0).powi(8)])
     }
 }
 
@@ -53,11 +49,10 @@ pub fn beckmann_table() -> &'static BeckmannTable {
     static TABLE: OnceLock<BeckmannTable> = OnceLock::new();
     TABLE.get_or_init(|| {
         let step = 1.0 / (D_SIZE - 1) as f64;
-        BeckmannTable(
-            (0..D_SIZE * D_SIZE)
-                .map(|k| beckmann(((k % D_SIZE) as f64 * step).powf(1.0 / 8.0), (k / D_SIZE) as f64 * step) as f32)
-                .collect(),
-        )
+        let data = (0..D_SIZE * D_SIZE)
+            .map(|k| beckmann(((k % D_SIZE) as f64 * step).powf(1.0 / 8.0), (k / D_SIZE) as f64 * step) as f32)
+            .collect();
+        BeckmannTable(Grid::new([D_SIZE, D_SIZE], 1, data))
     })
 }
 

@@ -4,8 +4,9 @@
 //! [0, 1] (32), η log-uniform in [0.02, 8] (48), √(κ / 12) uniform in [0, 1] (24); quadrilinear interpolation,
 //! clamped at the ends. Each entry is a 256-point stratified visible-normal quadrature, E[F(wi·m) G2/G1].
 
+use super::Grid;
+use crate::optics::distribution::{Distribution, G2Form, Microfacet};
 use crate::optics::fresnel;
-use crate::optics::microfacet::{Distribution, G2Form, Microfacet};
 use crate::optics::reflect;
 use glam::DVec3;
 use rayon::prelude::*;
@@ -23,7 +24,7 @@ const QUADRATURE: usize = 256;
 const VERSION: u32 = 1;
 
 pub struct Fgd {
-    data: Vec<f32>,
+    grid: Grid<4>,
 }
 
 fn mu_at(i: usize) -> f64 {
@@ -40,17 +41,6 @@ fn eta_at(i: usize) -> f64 {
 
 fn kappa_at(i: usize) -> f64 {
     KAPPA_MAX * (i as f64 / (N_KAPPA - 1) as f64).powi(2)
-}
-
-/// Continuous (clamped) table coordinates of a query.
-fn coords(mu: f64, alpha: f64, eta: f64, kappa: f64) -> [f64; 4] {
-    let c = |x: f64, n: usize| x.clamp(0.0, 1.0) * (n - 1) as f64;
-    [
-        c(mu, N_MU),
-        c(alpha, N_ALPHA),
-        c((eta / ETA_MIN).ln() / (ETA_MAX / ETA_MIN).ln(), N_ETA),
-        c((kappa / KAPPA_MAX).max(0.0).sqrt(), N_KAPPA),
-    ]
 }
 
 impl Fgd {
@@ -85,29 +75,13 @@ impl Fgd {
                 out
             })
             .collect();
-        Fgd { data: cells.concat() }
+        Fgd { grid: Grid::new([N_MU, N_ALPHA, N_ETA, N_KAPPA], 1, cells.concat()) }
     }
 
     /// Quadrilinear lookup of FGD(μ, α, η, κ).
     pub fn lookup(&self, mu: f64, alpha: f64, eta: f64, kappa: f64) -> f64 {
-        let x = coords(mu, alpha, eta, kappa);
-        let dims = [N_MU, N_ALPHA, N_ETA, N_KAPPA];
-        let lo: [usize; 4] = std::array::from_fn(|d| (x[d].floor() as usize).min(dims[d] - 2));
-        let t: [f64; 4] = std::array::from_fn(|d| x[d] - lo[d] as f64);
-        let mut sum = 0.0;
-        for corner in 0..16 {
-            let mut w = 1.0;
-            let mut idx = 0;
-            for d in 0..4 {
-                let bit = (corner >> d) & 1;
-                w *= if bit == 1 { t[d] } else { 1.0 - t[d] };
-                idx = idx * dims[d] + lo[d] + bit;
-            }
-            if w != 0.0 {
-                sum += w * self.data[idx] as f64;
-            }
-        }
-        sum
+        let eta = (eta / ETA_MIN).ln() / (ETA_MAX / ETA_MIN).ln();
+        self.grid.value([mu, alpha, eta, (kappa / KAPPA_MAX).max(0.0).sqrt()])
     }
 }
 
@@ -116,7 +90,8 @@ pub fn fgd() -> &'static Fgd {
     static TABLE: OnceLock<Fgd> = OnceLock::new();
     TABLE.get_or_init(|| {
         let name = format!("fgd-v{VERSION}-{N_MU}x{N_ALPHA}x{N_ETA}x{N_KAPPA}.f32");
-        Fgd { data: super::cached(&name, N_MU * N_ALPHA * N_ETA * N_KAPPA, || Fgd::generate().data) }
+        let data = super::cached(&name, N_MU * N_ALPHA * N_ETA * N_KAPPA, || Fgd::generate().grid.data().to_vec());
+        Fgd { grid: Grid::new([N_MU, N_ALPHA, N_ETA, N_KAPPA], 1, data) }
     })
 }
 

@@ -8,7 +8,7 @@ pub mod steinberg;
 
 pub use fgd::fgd;
 
-use crate::optics::microfacet::Microfacet;
+use crate::optics::distribution::Microfacet;
 use glam::DVec3;
 use std::path::PathBuf;
 
@@ -56,4 +56,52 @@ pub fn node(x: f64, n: usize) -> (usize, f64) {
     let s = x.clamp(0.0, 1.0) * (n - 1) as f64;
     let i = (s as i32).min(n as i32 - 2);
     (i as usize, s - i as f64)
+}
+
+/// Records of `width` f32 values on a regular grid of D axes, each axis spanning [0, 1] in its own coordinate:
+/// the one multilinear interpolation behind every table (FGD, Steinberg, Elek).
+pub struct Grid<const D: usize> {
+    dims: [usize; D],
+    width: usize,
+    data: Vec<f32>,
+}
+
+impl<const D: usize> Grid<D> {
+    /// `data` holds the records in row-major order of the axes (the last axis fastest).
+    pub fn new(dims: [usize; D], width: usize, data: Vec<f32>) -> Self {
+        assert_eq!(data.len(), dims.iter().product::<usize>() * width, "grid size");
+        Grid { dims, width, data }
+    }
+
+    pub fn data(&self) -> &[f32] {
+        &self.data
+    }
+
+    /// The record interpolated at coordinates `x` (each clamped to [0, 1]) into `out` (`width` values).
+    #[inline]
+    pub fn lookup(&self, x: [f64; D], out: &mut [f64]) {
+        let corner: [(usize, f64); D] = std::array::from_fn(|d| node(x[d], self.dims[d]));
+        out[..self.width].fill(0.0);
+        for k in 0..1usize << D {
+            let (mut weight, mut index) = (1.0, 0);
+            for (d, &(i, f)) in corner.iter().enumerate() {
+                let bit = (k >> (D - 1 - d)) & 1; // the last axis varies fastest
+                weight *= if bit == 1 { f } else { 1.0 - f };
+                index = index * self.dims[d] + i + bit;
+            }
+            if weight != 0.0 {
+                for (o, &v) in out.iter_mut().zip(&self.data[index * self.width..][..self.width]) {
+                    *o += weight * v as f64;
+                }
+            }
+        }
+    }
+
+    /// `lookup` of a table of one value per node.
+    #[inline]
+    pub fn value(&self, x: [f64; D]) -> f64 {
+        let mut out = [0.0];
+        self.lookup(x, &mut out);
+        out[0]
+    }
 }

@@ -15,9 +15,9 @@
 //! tabulated μ column by weighted Levenberg–Marquardt (weights 10 at μ = 0 and 100 at μ = 1 for t, 10 at both ends
 //! for s), bilinear in (α, log η) between nodes. The fit error against the table is reported in docs/validation.md.
 
-use super::{cached, fit, node, visible_normals};
+use super::{cached, fit, node, visible_normals, Grid};
+use crate::optics::distribution::{Distribution, Microfacet};
 use crate::optics::fresnel;
-use crate::optics::microfacet::{Distribution, Microfacet};
 use crate::optics::refract;
 use glam::DVec3;
 use rayon::prelude::*;
@@ -86,7 +86,7 @@ pub fn s_model(p: &[f64; S_PARAMS], mu: f64) -> f64 {
 
 pub struct Steinberg {
     /// [μ][α][η][t, s / sin θ, p]
-    table: Vec<f32>,
+    table: Grid<3>,
     /// [α][η][a, b, c, d, m, a₁, a₂, b₁, b₂]
     fits: Vec<f32>,
 }
@@ -193,21 +193,8 @@ impl Steinberg {
 
     /// Trilinear interpolation in (μ, α, log η) of the node values [t, s / sin θ, p].
     fn interpolate(&self, mu: f64, alpha: f64, eta: f64) -> [f64; STRIDE] {
-        let (i, fi) = node(mu, N_MU);
-        let (j, fj) = node(alpha, N_ALPHA);
-        let (k, fk) = node(eta_coord(eta), N_ETA);
         let mut v = [0.0; STRIDE];
-        for (di, wi) in [(0, 1.0 - fi), (1, fi)] {
-            for (dj, wj) in [(0, 1.0 - fj), (1, fj)] {
-                for (dk, wk) in [(0, 1.0 - fk), (1, fk)] {
-                    let w = wi * wj * wk;
-                    let idx = (((i + di) * N_ALPHA + j + dj) * N_ETA + k + dk) * STRIDE;
-                    for (x, &y) in v.iter_mut().zip(&self.table[idx..idx + STRIDE]) {
-                        *x += w * y as f64;
-                    }
-                }
-            }
-        }
+        self.table.lookup([mu, alpha, eta_coord(eta)], &mut v);
         v
     }
 
@@ -256,7 +243,7 @@ pub fn steinberg() -> &'static Steinberg {
             cached(&format!("steinberg-fit-v{VERSION}-{dims}.f32"), N_ALPHA * N_ETA * (T_PARAMS + S_PARAMS), || {
                 Steinberg::generate_fits(&table)
             });
-        Steinberg { table, fits }
+        Steinberg { table: Grid::new([N_MU, N_ALPHA, N_ETA], STRIDE, table), fits }
     })
 }
 

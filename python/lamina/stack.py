@@ -1,0 +1,239 @@
+"""The layer stack and its one evaluation interface: eval, sample, pdf and the Dirac reflection under any model of
+the catalogue (lamina.models), the Monte Carlo reference, albedo and lobes. Conventions: docs/conventions.md."""
+
+from __future__ import annotations
+
+from numbers import Integral, Real
+from typing import Sequence
+
+import numpy as np
+
+from . import _lamina, _reference
+from ._arrays import broadcast
+from .layers import Conductor, Dielectric, Diffuse, Layer
+from .catalogue import model as _model
+from .catalogue import options_doc
+
+_LAYERS = (Dielectric, Conductor, Diffuse)
+
+
+class Stack:
+    """Layers from top to bottom, ending in one opaque base (Conductor or Diffuse), under a medium of absolute
+    IOR `ext_ior` (air = 1.0). Validated at construction: bad parameters raise ValueError / TypeError. Stacks are
+    values: equal layers and ext_ior compare equal and hash alike, and they pickle."""
+
+    def __init__(self, layers: Sequence[Layer], ext_ior: float = 1.0):
+        if isinstance(layers, _LAYERS):
+            layers = [layers]
+        if isinstance(layers, (str, bytes)) or not isinstance(layers, Sequence):
+            raise TypeError(f"layers must be a list of lamina.Dielectric, Conductor or Diffuse, got {layers!r}")
+        self.layers = tuple(layers)
+        for i, layer in enumerate(self.layers):
+            if not isinstance(layer, _LAYERS):
+                raise TypeError(f"layers[{i}] must be a lamina.Dielectric, Conductor or Diffuse, got {type(layer).__name__}")
+        if not isinstance(ext_ior, Real) or isinstance(ext_ior, bool):
+            raise TypeError(f"ext_ior must be a number, got {ext_ior!r}")
+        self.ext_ior = float(ext_ior)
+        _lamina.check_stack(self._resolve(None), self.ext_ior)
+
+    def __repr__(self) -> str:
+        return f"Stack({list(self.layers)!r}, ext_ior={self.ext_ior})"
+
+    def __eq__(self, other) -> bool:
+        return isinstance(other, Stack) and (self.layers, self.ext_ior) == (other.layers, other.ext_ior)
+
+    def __hash__(self) -> int:
+        return hash((self.layers, self.ext_ior))
+
+    def _resolve(self, wavelengths) -> list:
+        return [layer._resolve(wavelengths) for layer in self.layers]
+
+    def _split(self, model: str, kwargs: dict) -> tuple:
+        """`model`'s catalogue entry, its options and its per-element inputs from keyword arguments."""
+        m = _model(model)
+        inputs = {k: v for k, v in kwargs.items() if k in m.inputs}
+        options = {k: v for k, v in kwargs.items() if k not in m.inputs}
+        unknown = [k for k in options if k not in m.options]
+        if unknown:
+            raise TypeError(f"model {model!r} has no option {unknown[0]!r}; its options are {list(m.options)} and its "
+                            f"per-element inputs {list(m.inputs)}")
+        return m, options, inputs
+
+    def eval(self, wi, wo, model: str = "microfacet", *, wavelengths=None, samples: int = 10_000, seed: int = 0,
+             **kwargs) -> np.ndarray:
+        """The BRDF f(wi, wo), not multiplied by cos θi.
+
+        wi, wo: directions (..., 3) in the local frame (z = normal), both pointing away from the surface: wi towards
+        the light, wo towards the viewer. They need not be unit length and broadcast against each other; directions
+        below the horizon give 0. Returns (..., 3) linear RGB channels, or (..., len(wavelengths)) with `wavelengths`
+        (nm); float32 when both inputs are float32, float64 otherwise. Units: 1/sr. Dirac (specular) lobes of smooth
+        interfaces are not part of f: see `specular`.
+
+        Keyword arguments are the model's options and its per-element inputs (arrays broadcast with the
+        directions); anything else is a TypeError. model="reference" returns the mean of `Stack.reference` with
+        `samples` paths per pair. Tables are built on the first call and kept for the next calls with the same stack
+        and options. Measured against the reference in docs/validation.md.
+
+        Models, their options (default, allowed values) and per-element inputs:
+        """
+        m, options, inputs = self._split(model, kwargs)
+        if m.name == "reference":
+            return self.reference(wi, wo, wavelengths=wavelengths, samples=samples, seed=seed, **options)[0]
+        wl = _wavelengths(wavelengths)
+        arrays = broadcast(wi=(wi, 3), wo=(wo, 3), **{k: (v, 0 if m.inputs[k].width == 1 else m.inputs[k].width)
+                                                      for k, v in inputs.items()})
+        named = dict(zip(inputs, arrays[2:]))
+        return _lamina.eval(self._resolve(wl), self.ext_ior, m.name, arrays[0], arrays[1], options, named)
+
+    def sample(self, wo, u, model: str = "microfacet", *, wavelengths=None, **kwargs):
+        """Importance-samples the light direction for viewing directions wo (..., 3) from uniform numbers u (..., 3)
+        in [0, 1] (broadcast): returns (wi (..., 3), weight (..., channels), pdf (...)) with weight = f(wi, wo)
+        cos θi / pdf and pdf per unit solid angle — what a path tracer calls (Mitsuba's si.wi is lamina's wo).
+
+        Each model samples a mixture of its lobes (GGX visible normals for reflection lobes, the cosine for diffuse
+        terms), weighted by their energies for this wo; Dirac lobes are not sampled (`specular` gives them). A sample
+        that leaves the hemisphere, or a wo with nothing to sample, has weight 0 and pdf 0. model="reference" traces
+        one random walk per element (seeded by u, in the channel u[0] picks; weight = its throughput times the
+        number of channels in that channel, 0 in the others) and reports pdf 0: a walk's density has no closed
+        form; its samples include the Dirac paths."""
+        m, options, inputs = self._split(model, kwargs)
+        wl = _wavelengths(wavelengths)
+        wo, u, *rest = broadcast(wo=(wo, 3), u=(u, 3), **{k: (v, 0 if m.inputs[k].width == 1 else m.inputs[k].width)
+                                                          for k, v in inputs.items()})
+        if m.name == "reference":
+            out = _lamina.reference_sample(self._resolve(wl), self.ext_ior, wo, u, **options)
+        else:
+            out = _lamina.sample(self._resolve(wl), self.ext_ior, m.name, wo, u, options, dict(zip(inputs, rest)))
+        return out[..., :3], out[..., 3:-1], out[..., -1]
+
+    def pdf(self, wi, wo, model: str = "microfacet", *, wavelengths=None, **options) -> np.ndarray:
+        """The pdf (per unit solid angle) with which `sample` draws wi for the viewing direction wo; (...)."""
+        m, options, inputs = self._split(model, options)
+        if m.name == "reference":
+            raise ValueError("model 'reference' has no closed-form pdf: its samples come from random walks")
+        if inputs:
+            raise TypeError(f"pdf takes no per-element inputs (the sampling mixture does not depend on them), got "
+                            f"{list(inputs)}")
+        wi, wo = broadcast(wi=(wi, 3), wo=(wo, 3))
+        return _lamina.pdf(self._resolve(_wavelengths(wavelengths)), self.ext_ior, m.name, wi, wo, options)[..., 0]
+
+    def specular(self, wo, model: str = "microfacet", *, wavelengths=None, **options) -> np.ndarray:
+        """The Dirac (mirror) reflection for viewing directions wo (..., 3): the fraction of light from the mirror
+        direction that smooth interfaces reflect specularly, per channel (..., channels). It is what `eval` leaves
+        out; a renderer adds it as a delta component."""
+        m, options, _ = self._split(model, options)
+        if m.name == "reference":
+            raise ValueError("model 'reference' includes Dirac paths in its samples and albedo; it has no separate "
+                             "specular part")
+        (wo,) = broadcast(wo=(wo, 3))
+        return _lamina.specular(self._resolve(_wavelengths(wavelengths)), self.ext_ior, m.name, wo, options)
+
+    def reference(self, wi, wo, *, wavelengths=None, samples: int = 100_000, seed: int = 0, progress=None,
+                  distribution: str = "ggx", g2: str = "height_correlated"):
+        """Monte Carlo ground truth for f(wi, wo): unbiased, with next-event estimation through the stack's delta
+        interfaces (see src/reference.rs). wi, wo: (..., 3), broadcast. Returns (f, stderr), each (..., channels).
+        Specular (Dirac) lobes are not part of f. Deterministic for a seed, whatever the thread count."""
+        wl = _wavelengths(wavelengths)
+        wi, wo = broadcast(wi=(wi, 3), wo=(wo, 3))
+        mean, err = _reference.f_estimate(self._resolve(wl), self.ext_ior, _unit_rows("wi", wi), _unit_rows("wo", wo),
+                                          samples, seed, progress=progress, distribution=distribution, g2=g2)
+        shape = wi.shape[:-1] + (mean.shape[-1],)
+        return mean.reshape(shape), err.reshape(shape)
+
+    def lobes(self, wo, model: str = "belcour", *, wavelengths=None) -> dict:
+        """The lobes a statistical model builds for viewing direction(s) wo (..., 3), one GGX lobe per interface
+        (L = interfaces down to the first opaque one), all centred on the mirror direction of wo:
+        {"energy": (..., L, channels), "covariance": (..., L, 2, 2) in the local tangent frame (Yamaguchi et al.
+        2019; σI for isotropic stacks), "roughness": (..., L, 2) the GGX (alpha_x, alpha_y) along the covariance's
+        eigenvectors, "angle": (..., L) the tangent angle (radians) of the alpha_x axis}. A lobe of roughness 0 is a
+        specular (Dirac) reflection. Only model="belcour" has lobes."""
+        if _model(model).name != "belcour":
+            raise ValueError(f"model must be 'belcour' for lobes, got {model!r}")
+        wl = _wavelengths(wavelengths)
+        (wo,) = broadcast(wo=(wo, 3))
+        rows = _unit_rows("wo", wo)
+        lead = wo.shape[:-1]
+        energy, cov, rough = (np.asarray(a, dtype=np.float64).reshape(lead + np.shape(a)[1:])
+                              for a in _lamina.belcour_lobes(self._resolve(wl), self.ext_ior, rows.tolist()))
+        sigma = np.stack([cov[..., 0], cov[..., 1], cov[..., 1], cov[..., 2]], -1).reshape(cov.shape[:-1] + (2, 2))
+        return {"energy": energy, "covariance": sigma, "roughness": rough[..., :2], "angle": rough[..., 2]}
+
+    def albedo(self, wi, model: str = "microfacet", *, wavelengths=None, samples: int = 100_000, seed: int = 0,
+               progress=None, **model_options):
+        """Directional albedo ∫ f(wi, wo) cos θo dωo: the fraction of light from wi that the stack reflects.
+
+        wi: (..., 3). Returns (..., channels). For an analytic model the integral is a midpoint quadrature
+        (512 x 1024 in θo, φo) of `eval` with `model_options` (its smooth, Dirac parts are not included). With
+        model="reference" it is the brute-force Monte Carlo walk with `samples` paths per direction (delta reflections
+        included), and the result is a pair (albedo, standard error)."""
+        m = _model(model)
+        wl = _wavelengths(wavelengths)
+        (wi,) = broadcast(wi=(wi, 3))
+        rows = _unit_rows("wi", wi)
+        if m.name == "reference":
+            mean, err = _reference.tally(self._resolve(wl), self.ext_ior, rows, samples, seed, progress=progress,
+                                         **model_options)
+            shape = wi.shape[:-1] + (mean.shape[1],)
+            return mean[..., 0].reshape(shape), err[..., 0].reshape(shape)
+        nt, npp = 512, 1024
+        t = (np.arange(nt) + 0.5) * (np.pi / 2 / nt)
+        p = (np.arange(npp) + 0.5) * (2 * np.pi / npp)
+        wo = np.stack([np.outer(np.sin(t), np.cos(p)), np.outer(np.sin(t), np.sin(p)),
+                       np.repeat(np.cos(t)[:, None], npp, axis=1)], axis=-1)
+        weight = (np.cos(t) * np.sin(t))[:, None, None] * (np.pi / 2 / nt) * (2 * np.pi / npp)
+        out = [np.sum(self.eval(w, wo, model, wavelengths=wl, **model_options) * weight, axis=(0, 1)) for w in rows]
+        return np.array(out).reshape(wi.shape[:-1] + (len(out[0]),))
+
+    def reference_lobe(self, wi, bins=(18, 36), *, wavelengths=None, samples: int = 1_000_000, seed: int = 0,
+                       progress=None, distribution: str = "ggx", g2: str = "height_correlated"):
+        """Brute-force Monte Carlo lobe for light from one direction `wi` (3,): the reflected energy per steradian,
+        i.e. f·cos θo averaged over each of n_theta x n_phi bins uniform in (θo, φo) (delta lobes included).
+
+        Returns (f_cos, stderr, (theta_edges, phi_edges)) with f_cos and stderr of shape (n_theta, n_phi, channels)
+        and edges in radians. bins: two positive integers with n_theta x n_phi at most 2**22."""
+        wl = _wavelengths(wavelengths)
+        (wi,) = broadcast(wi=(wi, 3))
+        if wi.shape != (3,):
+            raise ValueError(f"wi must be a single direction of shape (3,), got {wi.shape}")
+        try:
+            n_theta, n_phi = bins
+        except (TypeError, ValueError):
+            raise TypeError(f"bins must be a pair of positive integers (n_theta, n_phi), got {bins!r}") from None
+        if not all(isinstance(b, Integral) and not isinstance(b, bool) for b in (n_theta, n_phi)):
+            raise TypeError(f"bins must be a pair of positive integers (n_theta, n_phi), got {bins!r}")
+        if n_theta < 1 or n_phi < 1 or n_theta * n_phi > 1 << 22:
+            raise ValueError(f"bins must be positive with n_theta x n_phi in [1, 2**22], got {bins!r}")
+        n_theta, n_phi = int(n_theta), int(n_phi)
+        mean, err = _reference.tally(self._resolve(wl), self.ext_ior, _unit_rows("wi", wi), samples, seed,
+                                     bins=(n_theta, n_phi), progress=progress, distribution=distribution, g2=g2)
+        te = np.linspace(0, np.pi / 2, n_theta + 1)
+        pe = np.linspace(0, 2 * np.pi, n_phi + 1)
+        solid = np.outer(np.cos(te[:-1]) - np.cos(te[1:]), np.diff(pe))  # (n_theta, n_phi) steradians
+        per_sr = lambda x: np.moveaxis(x[0].reshape(-1, n_theta, n_phi), 0, -1) / solid[..., None]  # noqa: E731
+        return per_sr(mean), per_sr(err), (te, pe)
+
+
+Stack.eval.__doc__ += "\n".join("        " + line for line in options_doc().splitlines())
+
+
+def _unit_rows(name: str, w: np.ndarray) -> np.ndarray:
+    """Rows of w as unit float64 directions above the surface; ValueError otherwise."""
+    rows = np.asarray(w, dtype=np.float64).reshape(-1, 3)
+    if rows.shape[0] == 0:
+        raise ValueError(f"{name} must hold at least one direction, got shape {np.shape(w)}")
+    norm = np.linalg.norm(rows, axis=-1, keepdims=True)
+    if not np.all(np.isfinite(rows)) or np.any(norm == 0) or np.any(rows[:, 2] <= 0):
+        raise ValueError(f"{name} must hold finite, non-zero directions above the surface (z > 0)")
+    return rows / norm
+
+
+def _wavelengths(wavelengths):
+    if wavelengths is None:
+        return None
+    try:
+        wl = np.atleast_1d(np.asarray(wavelengths, dtype=np.float64))
+    except (TypeError, ValueError):
+        raise TypeError(f"wavelengths must be a 1-D array of wavelengths in nm, got {wavelengths!r}") from None
+    if wl.ndim != 1 or wl.size == 0 or not np.all(np.isfinite(wl)) or np.any(wl <= 0):
+        raise ValueError(f"wavelengths must be a non-empty 1-D array of positive finite values in nm, got {wavelengths!r}")
+    return wl

@@ -1,0 +1,322 @@
+//! `model="belcour"`: Belcour 2018, "Efficient rendering of layered materials using an atomic decomposition with
+//! statistical operators" — per-lobe energy, mean (as a cosine) and variance (in the projected disc, through the
+//! roughness map h) carried through the stack by adding-doubling, in the form of the published reference loop;
+//! one GGX lobe per interface, all centred on the mirror direction.
+//!
+//! Anisotropy (Yamaguchi et al. 2019): every variance is a symmetric 2x2 covariance Σ in the projected disc,
+//! expressed in the stack's local tangent frame; an interface of roughness (αx, αy) whose tangent frame is rotated by
+//! `angle` contributes Σ = R(angle) diag(h(αx), h(αy)) R(angle)ᵀ, and the adding-doubling combines covariances with
+//! the same (scalar) energy weights and first-order Jacobians as the scalar model. Each output lobe is eigen-
+//! decomposed into an anisotropic GGX lobe: α along the eigenvectors, its tangent angle that of the first one. FGD is
+//! looked up at the roughness the lobe has along the viewing azimuth. An isotropic stack keeps every Σ = σI, which
+//! reproduces the scalar model (to rounding). The Jacobians stay the scalar first-order ones (J ∝ I); the
+//! hemispherical reflectance R̄↑ seen by a diffuse base is computed at azimuth 0.
+//!
+//! Statistics are computed for the viewing direction wo (or for |wo·h| with `symmetric`, Belcour §6, which makes
+//! the BRDF reciprocal). Slabs are medium steps (Beer–Lambert absorption and forward Henyey–Greenstein scattering,
+//! no lobe). A diffuse base contributes ρ/π · T↓(θi) T↑(θo) / ((1 − ρ R̄↑) η²) — lamina's choice, which is exact
+//! for a smooth coat (Mitsuba's `plastic`): the energies transmitted down from wi and up to wo (one adding pass
+//! each), the inter-reflections with the stack's hemispherical reflectance from below R̄↑ (precomputed by
+//! quadrature, 1 under total internal reflection), and the radiance compression η² of the medium above the base.
+
+//!
+//! | Parameter   | Type   | Default             | Description                                                          |
+//! |-------------|--------|---------------------|----------------------------------------------------------------------|
+//! | `g2`        | string | `height_correlated` | masking-shadowing of the output GGX lobes                            |
+//! | `symmetric` | bool   | `false`             | statistics at |wo·h| (Belcour §6): a reciprocal BRDF                 |
+//! | `cosines`   | string | `frozen`            | transmission scale at normal incidence (code) or `real` (paper)      |
+//! | `jacobian`  | string | `j12`               | `j12` (code) or `j21` (paper) in the transmitted variance terms      |
+//! | `energy`    | string | `fgd`               | energies from FGD or the exact `fresnel` at the mean cosine          |
+//! | `tir`       | string | `off`               | the code's TIR step: `off`, `transmittance` or `fraction`            |
+//! | `tabulated` | bool   | `true`              | interpolate the adding-doubling from a table built once per stack    |
+//!
+//! Layout: `cov.rs` (covariances, roughness maps), `adding.rs` (the adding-doubling), `table.rs` (its table and
+//! the block evaluator). Sampling: each rough lobe by its GGX visible normals, weighted by its energy, and the
+//! diffuse base by the cosine; lobes of roughness 0 are Dirac (`specular`).
+
+mod adding;
+mod cov;
+mod table;
+
+pub use adding::{Tir, Variant};
+pub use cov::{alpha_from_variance, hg_variance, variance_from_alpha, Cov, Lobe};
+
+use super::options::G2;
+use super::{InputSpec, Inputs, Model, ModelInfo, OptionKind, OptionSpec, Options, Properties, Proposal};
+use crate::bsdf;
+use crate::error::{value_error, Result};
+use crate::optics::distribution::{Distribution, G2Form, Microfacet};
+use crate::stack::{Layer, Stack};
+use adding::{mean, DiffuseBase, Step};
+use glam::DVec3;
+use std::f64::consts::FRAC_1_PI;
+use table::{azimuth, LobeTable};
+
+const fn choice(
+    name: &'static str,
+    choices: &'static [&'static str],
+    default: &'static str,
+    doc: &'static str,
+) -> OptionSpec {
+    OptionSpec { name, kind: OptionKind::Choice { choices, default }, doc }
+}
+
+pub const INFO: ModelInfo = ModelInfo {
+    name: "belcour",
+    summary: "Belcour 2018 adding-doubling of lobe statistics, with Yamaguchi et al. 2019's anisotropic covariances",
+    options: &[
+        G2,
+        OptionSpec {
+            name: "symmetric",
+            kind: OptionKind::Flag { default: false },
+            doc: "statistics at |wo·h| instead of cos θo (Belcour §6): a reciprocal BRDF",
+        },
+        choice("cosines", &["frozen", "real"], "frozen", "transmission scale with cosines frozen at normal incidence (code) or the real ones (paper: exact Jacobians at the lobe mean)"),
+        choice("jacobian", &["j12", "j21"], "j12", "Jacobian in the transmitted and back-reflected variance terms: j12 (code) or j21 (paper)"),
+        choice("energy", &["fgd", "fresnel"], "fgd", "lobe energies from the FGD table or the exact Fresnel at the mean cosine"),
+        choice("tir", &["off", "transmittance", "fraction"], "off", "the reference code's TIR step: off, its table (repeats the Fresnel factor) or the totally reflected fraction"),
+        OptionSpec {
+            name: "tabulated",
+            kind: OptionKind::Flag { default: true },
+            doc: "interpolate the adding-doubling from a table over the viewing direction, built once per stack",
+        },
+    ] as &[OptionSpec],
+    inputs: &[] as &[InputSpec],
+    properties: Properties { reciprocal: false, energy_conserving: false, anisotropic: true, spectral: true },
+    prepare: |stack, opts| Ok(Box::new(prepare(stack, opts)?)),
+};
+
+pub struct Prepared {
+    steps: Vec<Step>,
+    anisotropic: bool,
+    diffuse: Option<DiffuseBase>,
+    table: Option<LobeTable>,
+    g2: G2Form,
+    symmetric: bool,
+    variant: Variant,
+    channels: usize,
+}
+
+pub fn prepare(stack: &Stack, opts: &Options) -> Result<Prepared> {
+    let mut steps = Vec::new();
+    let mut diffuse = None;
+    for (layer, rel) in stack.layers.iter().zip(stack.interfaces()) {
+        let (alpha, angle) = match layer {
+            Layer::Dielectric { alpha, angle, .. } | Layer::Conductor { alpha, angle, .. } => (*alpha, *angle),
+            Layer::Diffuse { roughness, .. } if *roughness > 0.0 => {
+                return value_error("model 'belcour' takes a Lambertian diffuse base (roughness 0)");
+            }
+            Layer::Diffuse { .. } => ((0.0, 0.0), 0.0),
+        };
+        match layer {
+            Layer::Dielectric { thickness, sigma_a, sigma_s, g, .. } => {
+                steps.push(Step::Interface { eta: rel.eta, kappa: rel.kappa, alpha, angle, conductor: false });
+                if *thickness > 0.0 && sigma_a.iter().chain(sigma_s).any(|&s| s > 0.0) {
+                    steps.push(Step::Medium {
+                        thickness: *thickness,
+                        sigma_a: sigma_a.clone(),
+                        sigma_s: sigma_s.clone(),
+                        g: *g,
+                    });
+                }
+            }
+            Layer::Conductor { .. } => {
+                steps.push(Step::Interface { eta: rel.eta, kappa: rel.kappa, alpha, angle, conductor: true });
+            }
+            Layer::Diffuse { albedo, .. } => {
+                let eta = mean(&rel.eta);
+                diffuse = Some(DiffuseBase { albedo: albedo.clone(), eta, r_up: vec![] });
+            }
+        }
+    }
+    let anisotropic = steps.iter().any(|s| matches!(s, Step::Interface { alpha, .. } if alpha.0 != alpha.1));
+    let mut p = Prepared {
+        steps,
+        anisotropic,
+        diffuse: None,
+        table: None,
+        g2: opts.g2,
+        symmetric: opts.symmetric,
+        variant: opts.belcour,
+        channels: stack.channels,
+    };
+    if let Some(mut d) = diffuse {
+        d.r_up = p.hemispherical_reflectance_from_below(d.eta);
+        p.diffuse = Some(d);
+    }
+    if opts.belcour_table {
+        p.table = Some(p.tabulate());
+    }
+    Ok(p)
+}
+
+impl Model for Prepared {
+    fn eval_block(&self, wi: [&[f64]; 3], wo: [&[f64]; 3], _: &Inputs, out: &mut [f64]) {
+        super::simd(|| self.eval_columns(wi, wo, out))
+    }
+
+    fn proposals(&self, wo: DVec3) -> Vec<(f64, Proposal)> {
+        let (cos_phi, sin_phi) = azimuth(wo);
+        let (lobes, view) = self.adding(wo.z, cos_phi, sin_phi);
+        let mut out: Vec<(f64, Proposal)> = lobes
+            .iter()
+            .filter_map(|lobe| {
+                let (ax, ay, angle) = lobe.roughness();
+                let mf = Microfacet::new(Distribution::Ggx, ax, ay, angle);
+                (!mf.is_smooth()).then(|| (mean(&lobe.energy), Proposal::Reflection(mf)))
+            })
+            .collect();
+        if let Some(d) = &self.diffuse {
+            let e =
+                (0..self.channels).map(|c| d.albedo[c] * view.ti0[c] * view.ti0[c] / (1.0 - d.albedo[c] * d.r_up[c]));
+            out.push((e.sum::<f64>() / self.channels as f64, Proposal::Cosine));
+        }
+        out.retain(|(w, _)| *w > 0.0);
+        out
+    }
+
+    fn specular(&self, wo: DVec3, out: &mut [f64]) {
+        out.fill(0.0);
+        if wo.z <= 0.0 {
+            return;
+        }
+        for lobe in self.lobes(wo) {
+            if Microfacet::new(Distribution::Ggx, lobe.roughness().0, lobe.roughness().1, 0.0).is_smooth() {
+                out.iter_mut().zip(&lobe.energy).for_each(|(o, e)| *o += e);
+            }
+        }
+    }
+}
+
+impl Prepared {
+    /// The lobes for a viewing direction `wo` (unit, above the surface).
+    pub fn lobes(&self, wo: DVec3) -> Vec<Lobe> {
+        let (cos_phi, sin_phi) = azimuth(wo);
+        self.adding(wo.z, cos_phi, sin_phi).0
+    }
+
+    pub fn eval(&self, wi: DVec3, wo: DVec3, out: &mut [f64]) {
+        out.fill(0.0);
+        if wi.z <= 0.0 || wo.z <= 0.0 {
+            return;
+        }
+        if self.table.is_some() {
+            return self.eval_columns([&[wi.x], &[wi.y], &[wi.z]], [&[wo.x], &[wo.y], &[wo.z]], out);
+        }
+        let cos_theta = if self.symmetric { wo.dot((wi + wo).normalize()).abs() } else { wo.z };
+        let (cos_phi, sin_phi) = azimuth(wo);
+        let (lobes, view) = self.adding(cos_theta, cos_phi, sin_phi);
+        for lobe in &lobes {
+            self.add_lobe(lobe.roughness(), &lobe.energy, wi, wo, out);
+        }
+        if self.diffuse.is_some() {
+            // T↓ at θi and T↑ at θo (not at |wo·h|): symmetric under exchange, since T0i = Ti0 in this model.
+            let (ci, si) = azimuth(wi);
+            let light = self.adding(wi.z, ci, si).1;
+            let view = if self.symmetric { self.adding(wo.z, cos_phi, sin_phi).1 } else { view };
+            self.add_diffuse(|ch| light.t0i[ch], |ch| view.ti0[ch], out);
+        }
+    }
+
+    /// Adds one GGX lobe of roughness (αx, αy, tangent angle) with per-channel `energy`; a lobe of roughness 0 is
+    /// a Dirac delta, not part of f.
+    fn add_lobe(&self, (ax, ay, angle): (f64, f64, f64), energy: &[f64], wi: DVec3, wo: DVec3, out: &mut [f64]) {
+        let mf = Microfacet::new(Distribution::Ggx, ax, ay, angle);
+        let shape = bsdf::reflection_geometry(&mf, self.g2, wi, wo).map_or(0.0, |(geo, _)| geo);
+        for (o, e) in out.iter_mut().zip(energy) {
+            *o += e * shape;
+        }
+    }
+
+    /// Adds the diffuse base ρ/π · T↓ T↑ / ((1 − ρ R̄↑) η²) from the energies transmitted down and up per channel.
+    fn add_diffuse(&self, down: impl Fn(usize) -> f64, up: impl Fn(usize) -> f64, out: &mut [f64]) {
+        let Some(d) = &self.diffuse else { return };
+        for (ch, o) in out.iter_mut().enumerate() {
+            let rho = d.albedo[ch];
+            *o += rho * FRAC_1_PI * down(ch) * up(ch) / ((1.0 - rho * d.r_up[ch]) * d.eta * d.eta);
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::table::{direction_of_pseudo_angle, pseudo_angle};
+    use super::*;
+    use crate::tables;
+
+    #[test]
+    fn smooth_coat_over_lambert_is_the_closed_form() {
+        let stack = Stack::new(
+            vec![
+                Layer::Dielectric {
+                    ior: vec![1.5],
+                    alpha: (0.0, 0.0),
+                    angle: 0.0,
+                    thickness: 0.0,
+                    sigma_a: vec![0.0],
+                    sigma_s: vec![0.0],
+                    g: 0.0,
+                },
+                Layer::Diffuse { albedo: vec![0.7], roughness: 0.0 },
+            ],
+            1.0,
+        )
+        .unwrap();
+        let p = prepare(&stack, &Options { belcour_table: false, ..Options::default() }).unwrap();
+        let f_int = crate::optics::fresnel::diffuse_reflectance(1.0 / 1.5);
+        for (wi, wo) in [(DVec3::new(0.3, 0.1, 0.9), DVec3::new(-0.6, 0.2, 0.5)), (DVec3::new(0.9, 0.0, 0.2), DVec3::Z)]
+        {
+            let (wi, wo) = (wi.normalize(), wo.normalize());
+            let mut out = [0.0];
+            p.eval(wi, wo, &mut out);
+            let exact = crate::models::microfacet::smooth_coat_lambert(0.7, 1.5, f_int, wi.z, wo.z);
+            assert!((out[0] - exact).abs() < 1e-9 * exact, "{} vs {exact}", out[0]);
+        }
+    }
+
+    #[test]
+    fn covariance_eigen_decomposition_round_trips() {
+        let c = Cov::oriented(0.3, 0.05, 0.7);
+        let (l1, l2, angle) = c.eigen();
+        assert!((l1 - 0.3).abs() < 1e-12 && (l2 - 0.05).abs() < 1e-12);
+        let back = Cov::oriented(l1, l2, angle);
+        assert!((back.xx - c.xx).abs() < 1e-12 && (back.xy - c.xy).abs() < 1e-12 && (back.yy - c.yy).abs() < 1e-12);
+        assert_eq!(Cov::iso(0.2).eigen(), (0.2, 0.2, 0.0));
+        assert!((c.along(0.7f64.cos(), 0.7f64.sin()) - 0.3).abs() < 1e-12);
+    }
+
+    #[test]
+    fn pseudo_angle_is_monotonic_in_the_azimuth_and_round_trips() {
+        let mut last = -1.0;
+        for k in 0..3600 {
+            let phi = std::f64::consts::PI * k as f64 / 3600.0;
+            let p = pseudo_angle(phi.cos(), phi.sin());
+            assert!(p > last && (p - phi).abs() < 4e-3, "φ = {phi}: {p} after {last}");
+            assert_eq!(pseudo_angle(-phi.cos(), -phi.sin()), p, "period π");
+            let (c, s) = direction_of_pseudo_angle(p);
+            assert!((c - phi.cos()).abs() < 1e-12 && (s - phi.sin()).abs() < 1e-12);
+            last = p;
+        }
+        assert_eq!(pseudo_angle(0.0, 0.0), 0.0);
+    }
+
+    #[test]
+    fn variance_map_round_trips() {
+        for a in [0.0, 0.01, 0.1, 0.5, 0.9] {
+            assert!((alpha_from_variance(variance_from_alpha(a)) - a).abs() < 1e-12);
+        }
+    }
+
+    #[test]
+    fn single_conductor_has_one_lobe_of_its_roughness_and_fgd_energy() {
+        let stack =
+            Stack::new(vec![Layer::Conductor { ior: vec![0.2], k: vec![3.0], alpha: (0.3, 0.3), angle: 0.0 }], 1.0)
+                .unwrap();
+        let p = prepare(&stack, &Options::default()).unwrap();
+        let lobes = p.lobes(DVec3::new((1.0f64 - 0.49).sqrt(), 0.0, 0.7));
+        assert_eq!(lobes.len(), 1);
+        let (ax, ay, angle) = lobes[0].roughness();
+        assert!((ax - 0.3).abs() < 1e-9 && ax == ay && angle == 0.0);
+        assert!((lobes[0].energy[0] - tables::fgd().lookup(0.7, 0.3, 0.2, 3.0)).abs() < 1e-12);
+    }
+}

@@ -1,0 +1,77 @@
+//! Importance sampling for every model: a one-sample mixture of the lobes the model proposes for the viewing
+//! direction (`Model::proposals`), each reflection lobe sampled through its visible normals (Heitz 2018) and
+//! diffuse terms by the cosine-weighted hemisphere (pbrt-v4's and Mitsuba 3's BSDF sampling). The pdf is the
+//! mixture's, per unit solid angle of wi; the weight f·cos θi / pdf is computed by the caller from the model's own f,
+//! so any mixture is unbiased.
+
+use super::{Model, Proposal};
+use crate::optics::reflect;
+use crate::sampling::cosine_hemisphere;
+use glam::DVec3;
+use std::f64::consts::FRAC_1_PI;
+
+/// pdf of wi under one lobe for the viewing direction wo: D_wo(h) / (4 wo·h) for a reflection lobe (the Jacobian
+/// of the reflection map, Walter et al. 2007 eq. 14), cos θi / π for the cosine lobe.
+pub fn lobe_pdf(lobe: &Proposal, wi: DVec3, wo: DVec3) -> f64 {
+    match lobe {
+        Proposal::Cosine => wi.z.max(0.0) * FRAC_1_PI,
+        Proposal::Reflection(mf) => {
+            let h = (wi + wo).normalize();
+            let c = wo.dot(h);
+            if c > 0.0 && h.is_finite() {
+                mf.pdf_visible(wo, h) / (4.0 * c)
+            } else {
+                0.0
+            }
+        }
+    }
+}
+
+/// The mixture's pdf of wi for the viewing direction wo; 0 below the horizon.
+pub fn mixture_pdf(lobes: &[(f64, Proposal)], wi: DVec3, wo: DVec3) -> f64 {
+    let total: f64 = lobes.iter().map(|(w, _)| w).sum();
+    if wi.z <= 0.0 || wo.z <= 0.0 || total <= 0.0 {
+        return 0.0;
+    }
+    lobes.iter().map(|(w, lobe)| w / total * lobe_pdf(lobe, wi, wo)).sum()
+}
+
+/// pdf(wi | wo) of `model`'s sampling.
+pub fn pdf(model: &dyn Model, wi: DVec3, wo: DVec3) -> f64 {
+    if wo.z <= 0.0 {
+        return 0.0;
+    }
+    mixture_pdf(&model.proposals(wo), wi, wo)
+}
+
+/// Samples wi for the viewing direction wo from three uniform numbers (u[0] picks the lobe, u[1], u[2] the
+/// direction): (wi, pdf). pdf = 0 when nothing can be sampled (wo below the horizon, only Dirac lobes) or when the
+/// sampled direction lies below the horizon (a lost sample: weight 0).
+pub fn sample(model: &dyn Model, wo: DVec3, u: [f64; 3]) -> (DVec3, f64) {
+    if wo.z <= 0.0 {
+        return (DVec3::Z, 0.0);
+    }
+    let lobes = model.proposals(wo);
+    let total: f64 = lobes.iter().map(|(w, _)| w).sum();
+    if lobes.is_empty() || total <= 0.0 {
+        return (DVec3::Z, 0.0);
+    }
+    let (u0, u1, u2) = (u[0].clamp(0.0, 1.0) * total, u[1].clamp(0.0, 1.0), u[2].clamp(0.0, 1.0));
+    let mut acc = 0.0;
+    let mut chosen = &lobes[lobes.len() - 1].1;
+    for (w, lobe) in &lobes {
+        acc += w;
+        if u0 < acc {
+            chosen = lobe;
+            break;
+        }
+    }
+    let wi = match chosen {
+        Proposal::Cosine => cosine_hemisphere(u1, u2),
+        Proposal::Reflection(mf) => reflect(wo, mf.sample_visible(wo, u1, u2)),
+    };
+    if wi.z.is_nan() || wi.z <= 0.0 {
+        return (wi, 0.0);
+    }
+    (wi, mixture_pdf(&lobes, wi, wo))
+}

@@ -1,0 +1,337 @@
+//! Bindings of the stack and the model catalogue: one entry point each for eval, sample, pdf and the Dirac
+//! reflection, whatever the model; a model's options and per-element inputs are checked against its catalogue
+//! entry (models/mod.rs).
+
+use super::arrays::{batch, batch_blocks, vec3, Kind, MAX_INPUTS};
+use crate::error::Error;
+use crate::models::{self, sample, ModelInfo, OptionKind, Options, Value};
+use crate::reference::{self, ChannelStack, Exit};
+use crate::sampling::Rng;
+use crate::stack::{Layer, Stack};
+use pyo3::exceptions::{PyTypeError, PyValueError};
+use pyo3::prelude::*;
+use pyo3::types::{PyBool, PyDict, PyList, PyString};
+use std::sync::Arc;
+
+fn item<'py, T: FromPyObjectOwned<'py>>(d: &Bound<'py, PyDict>, key: &str, i: usize) -> PyResult<T> {
+    let v = d.get_item(key)?.ok_or_else(|| PyValueError::new_err(format!("layer {i}: missing {key}")))?;
+    v.extract::<T>().map_err(|e| PyTypeError::new_err(format!("layer {i}: {key}: {}", Into::<PyErr>::into(e))))
+}
+
+/// One layer from its per-channel dictionary (made by python/lamina/layers.py).
+fn parse_layer(obj: &Bound<'_, PyAny>, i: usize) -> PyResult<Layer> {
+    let d = obj.cast::<PyDict>().map_err(|_| PyTypeError::new_err(format!("layer {i} must be a dict")))?;
+    let kind: String = item(d, "kind", i)?;
+    Ok(match kind.as_str() {
+        "dielectric" => Layer::Dielectric {
+            ior: item(d, "ior", i)?,
+            alpha: item(d, "roughness", i)?,
+            angle: item(d, "angle", i)?,
+            thickness: item(d, "thickness", i)?,
+            sigma_a: item(d, "sigma_a", i)?,
+            sigma_s: item(d, "sigma_s", i)?,
+            g: item(d, "g", i)?,
+        },
+        "conductor" => Layer::Conductor {
+            ior: item(d, "ior", i)?,
+            k: item(d, "k", i)?,
+            alpha: item(d, "roughness", i)?,
+            angle: item(d, "angle", i)?,
+        },
+        "diffuse" => Layer::Diffuse { albedo: item(d, "albedo", i)?, roughness: item(d, "roughness", i)? },
+        other => return Err(PyValueError::new_err(format!("layer {i}: unknown kind {other:?}"))),
+    })
+}
+
+/// Builds a validated Stack from the per-channel layer dictionaries.
+pub fn parse_stack(layers: &Bound<'_, PyList>, ext_ior: f64) -> PyResult<Stack> {
+    let layers = layers.iter().enumerate().map(|(i, obj)| parse_layer(&obj, i)).collect::<PyResult<Vec<_>>>()?;
+    Ok(Stack::new(layers, ext_ior)?)
+}
+
+/// Validates one layer on its own (at construction, before any stack); `name` starts the messages.
+#[pyfunction]
+pub fn check_layer(layer: &Bound<'_, PyAny>, name: &str) -> PyResult<()> {
+    let l = parse_layer(layer, 0)?;
+    let channels = match &l {
+        Layer::Dielectric { ior, .. } | Layer::Conductor { ior, .. } => ior.len(),
+        Layer::Diffuse { albedo, .. } => albedo.len(),
+    };
+    Ok(l.check(name, channels)?)
+}
+
+/// Validates a stack description and that `model` can evaluate it with its default options.
+#[pyfunction]
+#[pyo3(signature = (layers, ext_ior, model=None))]
+pub fn check_stack(layers: &Bound<'_, PyList>, ext_ior: f64, model: Option<&str>) -> PyResult<usize> {
+    let stack = parse_stack(layers, ext_ior)?;
+    if let Some(m) = model {
+        let info = models::info(m)?;
+        models::prepare(m, &stack, &Options::parse(m, info.options, &[])?)?;
+    }
+    Ok(stack.channels)
+}
+
+/// An option's value from Python: a bool, a string, a number or a sequence of numbers.
+fn option_value(key: &str, v: &Bound<'_, PyAny>) -> PyResult<Value> {
+    if v.is_instance_of::<PyBool>() {
+        return Ok(Value::Flag(v.extract()?));
+    }
+    if v.is_instance_of::<PyString>() {
+        return Ok(Value::Text(v.extract()?));
+    }
+    if let Ok(x) = v.extract::<f64>() {
+        return Ok(Value::Number(x));
+    }
+    v.extract::<Vec<f64>>()
+        .map(Value::List)
+        .map_err(|_| PyTypeError::new_err(format!("{key} must be a bool, a string, a number or numbers, got {v}")))
+}
+
+/// The stack, its model prepared with the given options, and the model's catalogue entry.
+fn prepared(
+    layers: &Bound<'_, PyList>,
+    ext_ior: f64,
+    model: &str,
+    options: Option<&Bound<'_, PyDict>>,
+) -> PyResult<(Stack, Arc<dyn models::Model>, &'static ModelInfo)> {
+    let stack = parse_stack(layers, ext_ior)?;
+    let info = models::info(model)?;
+    let mut given = Vec::new();
+    for (k, v) in options.into_iter().flat_map(|d| d.iter()) {
+        let key: String = k.extract()?;
+        given.push((key.clone(), option_value(&key, &v)?));
+    }
+    let opts = Options::parse(model, info.options, &given)?;
+    let p = models::prepare(model, &stack, &opts)?;
+    Ok((stack, p, info))
+}
+
+/// The per-element inputs given for a model: (name, array, check) in the order given, and for each of the model's
+/// inputs the index of its array among all inputs (after the `first` direction arrays).
+type Given<'a, 'py> = (Vec<(String, Bound<'py, PyAny>, Kind)>, Vec<Option<usize>>, &'a ModelInfo);
+
+fn given_inputs<'a, 'py>(
+    info: &'a ModelInfo,
+    model: &dyn models::Model,
+    inputs: Option<&Bound<'py, PyDict>>,
+    first: usize,
+) -> PyResult<Given<'a, 'py>> {
+    let mut arrays = Vec::new();
+    let mut slot = vec![None; info.inputs.len()];
+    for (k, v) in inputs.into_iter().flat_map(|d| d.iter()) {
+        let key: String = k.extract()?;
+        let Some(j) = info.inputs.iter().position(|s| s.name == key) else {
+            let names: Vec<&str> = info.inputs.iter().map(|s| s.name).collect();
+            return Err(PyTypeError::new_err(format!(
+                "model {:?} has no per-element input {key:?}; its inputs are {names:?}",
+                info.name
+            )));
+        };
+        let spec = info.inputs[j];
+        slot[j] = Some(first + arrays.len());
+        arrays.push((key, v, Kind::Range(spec.width, spec.range.0, spec.range.1)));
+    }
+    if first + arrays.len() > MAX_INPUTS {
+        return Err(PyValueError::new_err("too many per-element inputs"));
+    }
+    model.check_inputs(&slot.iter().map(|s| s.is_some()).collect::<Vec<_>>())?;
+    Ok((arrays, slot, info))
+}
+
+/// The catalogue: one dict per model (name, summary, options, inputs, properties).
+#[pyfunction]
+#[pyo3(name = "models")]
+pub fn catalogue<'py>(py: Python<'py>) -> PyResult<Vec<Bound<'py, PyDict>>> {
+    models::CATALOGUE
+        .iter()
+        .map(|m| {
+            let d = PyDict::new(py);
+            d.set_item("name", m.name)?;
+            d.set_item("summary", m.summary)?;
+            let options = PyList::empty(py);
+            for o in m.options {
+                let od = PyDict::new(py);
+                od.set_item("name", o.name)?;
+                od.set_item("doc", o.doc)?;
+                match o.kind {
+                    OptionKind::Choice { choices, default } => {
+                        od.set_item("kind", "choice")?;
+                        od.set_item("choices", choices.to_vec())?;
+                        od.set_item("default", default)?;
+                    }
+                    OptionKind::Flag { default } => {
+                        od.set_item("kind", "flag")?;
+                        od.set_item("choices", vec![false, true])?;
+                        od.set_item("default", default)?;
+                    }
+                    OptionKind::Number { lo, hi, default } | OptionKind::Channels { lo, hi, default } => {
+                        let channels = matches!(o.kind, OptionKind::Channels { .. });
+                        od.set_item("kind", if channels { "channels" } else { "number" })?;
+                        od.set_item("range", (lo, hi))?;
+                        od.set_item("default", default)?;
+                    }
+                }
+                options.append(od)?;
+            }
+            d.set_item("options", options)?;
+            let inputs = PyList::empty(py);
+            for i in m.inputs {
+                let id = PyDict::new(py);
+                id.set_item("name", i.name)?;
+                id.set_item("width", i.width)?;
+                id.set_item("range", i.range)?;
+                id.set_item("doc", i.doc)?;
+                inputs.append(id)?;
+            }
+            d.set_item("inputs", inputs)?;
+            let p = m.properties;
+            let props = PyDict::new(py);
+            props.set_item("reciprocal", p.reciprocal)?;
+            props.set_item("energy_conserving", p.energy_conserving)?;
+            props.set_item("anisotropic", p.anisotropic)?;
+            props.set_item("spectral", p.spectral)?;
+            d.set_item("properties", props)?;
+            Ok(d)
+        })
+        .collect()
+}
+
+/// f(wi, wo) of a stack under a model: (..., channels). `inputs` maps the model's per-element inputs to arrays
+/// (..., width) broadcast with the directions.
+#[pyfunction]
+#[pyo3(signature = (layers, ext_ior, model, wi, wo, options=None, inputs=None))]
+#[allow(clippy::too_many_arguments)]
+pub fn eval<'py>(
+    py: Python<'py>,
+    layers: &Bound<'py, PyList>,
+    ext_ior: f64,
+    model: &str,
+    wi: &Bound<'py, PyAny>,
+    wo: &Bound<'py, PyAny>,
+    options: Option<&Bound<'py, PyDict>>,
+    inputs: Option<&Bound<'py, PyDict>>,
+) -> PyResult<Bound<'py, PyAny>> {
+    let (stack, p, info) = prepared(layers, ext_ior, model, options)?;
+    let (arrays, slot, _) = given_inputs(info, &*p, inputs, 2)?;
+    let mut all = vec![("wi", wi, Kind::Direction), ("wo", wo, Kind::Direction)];
+    all.extend(arrays.iter().map(|(n, a, k)| (n.as_str(), a, *k)));
+    batch_blocks(py, &all, stack.channels, |b, o| {
+        let mut cols: [Option<[&[f64]; 3]>; MAX_INPUTS] = [None; MAX_INPUTS];
+        for (c, s) in cols.iter_mut().zip(&slot) {
+            *c = s.map(|k| b.columns(k));
+        }
+        p.eval_block(b.columns(0), b.columns(1), &cols[..slot.len()], o)
+    })
+}
+
+/// Importance sampling: for viewing directions wo and uniform numbers u (..., 3) in [0, 1], (..., 3 + channels + 1)
+/// rows of (wi, weight = f·cos θi / pdf, pdf per unit solid angle).
+#[pyfunction]
+#[pyo3(name = "sample", signature = (layers, ext_ior, model, wo, u, options=None, inputs=None))]
+#[allow(clippy::too_many_arguments)]
+pub fn sample_stack<'py>(
+    py: Python<'py>,
+    layers: &Bound<'py, PyList>,
+    ext_ior: f64,
+    model: &str,
+    wo: &Bound<'py, PyAny>,
+    u: &Bound<'py, PyAny>,
+    options: Option<&Bound<'py, PyDict>>,
+    inputs: Option<&Bound<'py, PyDict>>,
+) -> PyResult<Bound<'py, PyAny>> {
+    let (stack, p, info) = prepared(layers, ext_ior, model, options)?;
+    let (arrays, slot, _) = given_inputs(info, &*p, inputs, 2)?;
+    let mut all = vec![("wo", wo, Kind::Direction), ("u", u, Kind::Range(3, 0.0, 1.0))];
+    all.extend(arrays.iter().map(|(n, a, k)| (n.as_str(), a, *k)));
+    let c = stack.channels;
+    batch(py, &all, 3 + c + 1, |r, o| {
+        let wo = vec3(&r[0]);
+        let (wi, pdf) = sample::sample(&*p, wo, r[1]);
+        o[..3].copy_from_slice(&wi.to_array());
+        if pdf > 0.0 {
+            let row: Vec<Option<[f64; 3]>> = slot.iter().map(|s| s.map(|k| r[k])).collect();
+            let (weight, tail) = o[3..].split_at_mut(c);
+            models::eval_one(&*p, wi, wo, &row, weight);
+            weight.iter_mut().for_each(|w| *w *= wi.z / pdf);
+            tail[0] = pdf;
+        }
+    })
+}
+
+/// The sampling pdf of wi given wo per unit solid angle: (..., 1).
+#[pyfunction]
+#[pyo3(signature = (layers, ext_ior, model, wi, wo, options=None))]
+#[allow(clippy::too_many_arguments)]
+pub fn pdf<'py>(
+    py: Python<'py>,
+    layers: &Bound<'py, PyList>,
+    ext_ior: f64,
+    model: &str,
+    wi: &Bound<'py, PyAny>,
+    wo: &Bound<'py, PyAny>,
+    options: Option<&Bound<'py, PyDict>>,
+) -> PyResult<Bound<'py, PyAny>> {
+    let (_, p, _) = prepared(layers, ext_ior, model, options)?;
+    let dirs = [("wi", wi, Kind::Direction), ("wo", wo, Kind::Direction)];
+    batch(py, &dirs, 1, |r, o| o[0] = sample::pdf(&*p, vec3(&r[0]), vec3(&r[1])))
+}
+
+/// The Dirac (mirror) reflection at wo per channel: (..., channels).
+#[pyfunction]
+#[pyo3(signature = (layers, ext_ior, model, wo, options=None))]
+pub fn specular<'py>(
+    py: Python<'py>,
+    layers: &Bound<'py, PyList>,
+    ext_ior: f64,
+    model: &str,
+    wo: &Bound<'py, PyAny>,
+    options: Option<&Bound<'py, PyDict>>,
+) -> PyResult<Bound<'py, PyAny>> {
+    let (stack, p, _) = prepared(layers, ext_ior, model, options)?;
+    batch(py, &[("wo", wo, Kind::Direction)], stack.channels, |r, o| p.specular(vec3(&r[0]), o))
+}
+
+/// The reference's sampling: one random walk per row from the viewing direction wo (seeded by the row's u), in the
+/// channel that u[0] picks; its exit direction is wi (reciprocity) and its throughput, times the number of channels,
+/// that channel's weight (the others 0). (..., 3 + channels + 1) rows as `sample`, with pdf 0: a walk's exit
+/// density has no closed form. Dirac paths are included.
+#[pyfunction]
+#[pyo3(signature = (layers, ext_ior, wo, u, distribution="ggx", g2="height_correlated"))]
+#[allow(clippy::too_many_arguments)]
+pub fn reference_sample<'py>(
+    py: Python<'py>,
+    layers: &Bound<'py, PyList>,
+    ext_ior: f64,
+    wo: &Bound<'py, PyAny>,
+    u: &Bound<'py, PyAny>,
+    distribution: &str,
+    g2: &str,
+) -> PyResult<Bound<'py, PyAny>> {
+    let stack = parse_stack(layers, ext_ior)?;
+    let (dist, g2) = (super::primitives::parse_distribution(distribution)?, super::primitives::parse_g2(g2)?);
+    let c = stack.channels;
+    let stacks: Vec<ChannelStack> = (0..c).map(|k| ChannelStack::new(&stack, k, dist, g2)).collect();
+    let inputs = [("wo", wo, Kind::Direction), ("u", u, Kind::Range(3, 0.0, 1.0))];
+    batch(py, &inputs, 3 + c + 1, |r, o| {
+        let wo = vec3(&r[0]);
+        if wo.z <= 0.0 {
+            return;
+        }
+        let k = ((r[1][0] * c as f64) as usize).min(c - 1);
+        let mut rng = Rng::new(Rng::seed_for(0, &r[1]), 0);
+        if let Exit::Escaped { dir, weight } = reference::trace(&stacks[k], wo, &mut rng) {
+            o[..3].copy_from_slice(&dir.to_array());
+            o[3 + k] = weight * c as f64;
+        }
+    })
+}
+
+impl From<Error> for PyErr {
+    fn from(e: Error) -> PyErr {
+        match e {
+            Error::Value(s) => PyValueError::new_err(s),
+            Error::Type(s) => PyTypeError::new_err(s),
+        }
+    }
+}

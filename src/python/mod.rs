@@ -1,0 +1,43 @@
+//! Thin PyO3 bindings: NumPy arrays in, NumPy arrays out. `arrays` checks, gathers and evaluates the (already
+//! broadcast) inputs in parallel with the GIL released; `api` binds the stack and the model catalogue; `primitives`
+//! the optics primitives and tables; `reference` the Monte Carlo reference. No Rust panic crosses this boundary:
+//! bad input becomes ValueError / TypeError.
+
+mod api;
+mod arrays;
+mod primitives;
+mod reference;
+
+use pyo3::prelude::*;
+
+#[pymodule]
+fn _lamina(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    let names: Vec<&str> = crate::models::CATALOGUE.iter().map(|i| i.name).collect();
+    m.add("MODELS", names)?;
+    m.add("__version__", env!("CARGO_PKG_VERSION"))?;
+    m.add("REFERENCE_MAX_DEPTH", crate::reference::MAX_DEPTH)?;
+    m.add_function(wrap_pyfunction!(api::check_layer, m)?)?;
+    m.add_function(wrap_pyfunction!(api::check_stack, m)?)?;
+    m.add_function(wrap_pyfunction!(api::catalogue, m)?)?;
+    m.add_function(wrap_pyfunction!(api::eval, m)?)?;
+    m.add_function(wrap_pyfunction!(api::sample_stack, m)?)?;
+    m.add_function(wrap_pyfunction!(api::pdf, m)?)?;
+    m.add_function(wrap_pyfunction!(api::specular, m)?)?;
+    m.add_function(wrap_pyfunction!(api::reference_sample, m)?)?;
+    m.add_function(wrap_pyfunction!(primitives::steinberg_lut, m)?)?;
+    m.add_function(wrap_pyfunction!(primitives::fresnel_dielectric, m)?)?;
+    m.add_function(wrap_pyfunction!(primitives::fresnel_conductor, m)?)?;
+    m.add_function(wrap_pyfunction!(primitives::fresnel_schlick, m)?)?;
+    m.add_function(wrap_pyfunction!(primitives::fresnel_diffuse_reflectance, m)?)?;
+    m.add_function(wrap_pyfunction!(primitives::microfacet_d, m)?)?;
+    m.add_function(wrap_pyfunction!(primitives::microfacet_lambda, m)?)?;
+    m.add_function(wrap_pyfunction!(primitives::microfacet_g2, m)?)?;
+    m.add_function(wrap_pyfunction!(primitives::sample_visible, m)?)?;
+    m.add_function(wrap_pyfunction!(primitives::pdf_visible, m)?)?;
+    m.add_function(wrap_pyfunction!(primitives::interface_bsdf, m)?)?;
+    m.add_function(wrap_pyfunction!(primitives::jacobian, m)?)?;
+    m.add_function(wrap_pyfunction!(reference::reference_tally, m)?)?;
+    m.add_function(wrap_pyfunction!(reference::reference_f, m)?)?;
+    m.add_function(wrap_pyfunction!(reference::belcour_lobes, m)?)?;
+    Ok(())
+}
