@@ -7,7 +7,7 @@ VPY := $(VENV)/bin/python
 # with LLVM 15); system-deps installs Debian's libllvm19 when root. Without one, the tests use scalar_* variants.
 LLVM = DRJIT_LIBLLVM_PATH="$$($(PY) tests/libllvm.py)"
 
-.PHONY: demo test develop venv test-deps system-deps rust-test py-test bench validation reference clean
+.PHONY: demo test lint develop venv test-deps system-deps rust-test py-test bench validation reference reliability fuzz readme clean
 
 $(VPY):
 	$(PY) -m venv $(VENV)
@@ -37,15 +37,22 @@ system-deps:
 	fi
 
 test-deps: venv system-deps
-	$(VPY) -m pip install -q "pytest>=7" "hypothesis>=6" "colour-science>=0.4.4" scipy "mitsuba>=3.9,<3.10"
+	$(VPY) -m pip install -q "pytest>=7" "hypothesis>=6" "colour-science>=0.4.4" scipy "mitsuba>=3.9,<3.10" "ruff>=0.6"
 
 rust-test:
 	cargo test --release
 
+# Formatting and lints of both languages (clippy over every target, the Python bindings included).
+lint: test-deps
+	cargo fmt --check
+	cargo clippy --release --all-targets --features python -- -D warnings
+	$(VENV)/bin/ruff check python tests scripts benchmarks
+	$(VENV)/bin/ruff format --check python tests scripts benchmarks
+
 py-test: develop test-deps
 	$(LLVM) $(VPY) -m pytest tests
 
-test: rust-test py-test
+test: lint rust-test py-test
 
 bench: develop test-deps
 	$(LLVM) $(VPY) benchmarks/bench_conductor.py
@@ -55,6 +62,19 @@ bench: develop test-deps
 # Regenerates docs/validation.md from measurements against Mitsuba 3 and colour-science.
 validation: develop test-deps
 	$(LLVM) $(VPY) scripts/validation_report.py
+
+# docs/reliability.md: the bad-input table (and the fuzz counts of docs/fuzz.json, written by `make fuzz`).
+reliability: develop
+	$(VPY) scripts/reliability.py
+
+# Fuzzes every model with 1e8 direction pairs (several minutes), then regenerates docs/reliability.md.
+fuzz: develop
+	$(VPY) scripts/fuzz.py
+	$(VPY) scripts/reliability.py
+
+# Regenerates the README's model table from the catalogue (lamina.models()).
+readme: develop
+	$(VPY) scripts/readme_tables.py
 
 # Computes (or loads from ~/.cache/lamina) the suite's reference values on its fixed direction grid.
 reference: develop

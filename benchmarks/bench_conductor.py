@@ -15,9 +15,8 @@ import statistics
 import sys
 import time
 
-import numpy as np
-
 import lamina
+import numpy as np
 from docs_section import write_section
 
 N = int(os.environ.get("LAMINA_BENCH_N", 1_000_000))
@@ -82,8 +81,15 @@ def main() -> None:
     import mitsuba as mi
 
     mi.set_variant("llvm_ad_rgb")
-    bsdf = mi.load_dict({"type": "roughconductor", "distribution": "ggx", "alpha": ALPHA,
-                         "eta": {"type": "rgb", "value": list(ETA)}, "k": {"type": "rgb", "value": list(K)}})
+    bsdf = mi.load_dict(
+        {
+            "type": "roughconductor",
+            "distribution": "ggx",
+            "alpha": ALPHA,
+            "eta": {"type": "rgb", "value": list(ETA)},
+            "k": {"type": "rgb", "value": list(K)},
+        }
+    )
     ctx = mi.BSDFContext()
 
     def mitsuba_eval():
@@ -92,13 +98,15 @@ def main() -> None:
         value = bsdf.eval(ctx, si, mi.Vector3f(np.ascontiguousarray(wi32.T)))
         return np.array(value).T / wi32[:, 2:3]
 
-    rows = measure({
-        "lamina float32 in/out": lambda: stack.eval(wi32, wo32, g2="separable"),
-        "lamina float64 in/out": lambda: stack.eval(wi64, wo64, g2="separable"),
-        "lamina float32, fresnel='schlick'": lambda: stack.eval(wi32, wo32, g2="separable", fresnel="schlick"),
-        "NumPy float64": lambda: numpy_conductor(wi64, wo64),
-        "Mitsuba 3 llvm_ad_rgb (float32)": mitsuba_eval,
-    })
+    rows = measure(
+        {
+            "lamina float32 in/out": lambda: stack.eval(wi32, wo32, g2="separable"),
+            "lamina float64 in/out": lambda: stack.eval(wi64, wo64, g2="separable"),
+            "lamina float32, fresnel='schlick'": lambda: stack.eval(wi32, wo32, g2="separable", fresnel="schlick"),
+            "NumPy float64": lambda: numpy_conductor(wi64, wo64),
+            "Mitsuba 3 llvm_ad_rgb (float32)": mitsuba_eval,
+        }
+    )
     # Same answers (to float32) before any figure is reported.
     a, b = stack.eval(wi64, wo64, g2="separable"), mitsuba_eval()
     big = a > 1e-3 * a.max()
@@ -139,7 +147,8 @@ def main() -> None:
         "array, and first-touch page faults cost ~3 µs per 4 KiB page on this VM, which both sides pay.",
         "",
         f"Machine: {cpu}, {os.cpu_count()} logical cores, Python {platform.python_version()}, NumPy {np.__version__}, "
-        f"Mitsuba {mi.__version__}, lamina {lamina.__version__}. Mitsuba's first call includes compiling its LLVM kernel.",
+        f"Mitsuba {mi.__version__}, lamina {lamina.__version__}. "
+        "Mitsuba's first call includes compiling its LLVM kernel.",
         "",
     ]
     out = write_section("benchmarks.md", "Benchmarks", "conductor", lines)

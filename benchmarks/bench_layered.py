@@ -10,9 +10,8 @@ from __future__ import annotations
 import os
 import sys
 
-import numpy as np
-
 import lamina
+import numpy as np
 from bench_conductor import measure, timed
 from docs_section import write_section
 
@@ -27,8 +26,11 @@ VARIANTS = [
     ("weidlich_wilkie, precomputed (Elek's tables)", "weidlich_wilkie", {"precomputed": True}),
     ("weidlich_wilkie, Lazányi Fresnel", "weidlich_wilkie", {"fresnel": "lazanyi"}),
 ]
-STACKS = {"2 layers": "rough-coat-rough-copper", "3 layers": "three-layer", "2 layers, anisotropic":
-          "anisotropic-coat-metal"}
+STACKS = {
+    "2 layers": "rough-coat-rough-copper",
+    "3 layers": "three-layer",
+    "2 layers, anisotropic": "anisotropic-coat-metal",
+}
 
 
 #: Back-to-back pairs timed for the anisotropic / isotropic ratio.
@@ -58,8 +60,15 @@ def main() -> None:
     import mitsuba as mi
 
     mi.set_variant("llvm_ad_rgb")
-    bsdf = mi.load_dict({"type": "roughconductor", "distribution": "ggx", "alpha": 0.3,
-                         "eta": {"type": "rgb", "value": [0.2, 0.45, 1.4]}, "k": {"type": "rgb", "value": [3.6, 2.5, 1.9]}})
+    bsdf = mi.load_dict(
+        {
+            "type": "roughconductor",
+            "distribution": "ggx",
+            "alpha": 0.3,
+            "eta": {"type": "rgb", "value": [0.2, 0.45, 1.4]},
+            "k": {"type": "rgb", "value": [3.6, 2.5, 1.9]},
+        }
+    )
     ctx = mi.BSDFContext()
 
     def mitsuba_eval():
@@ -76,7 +85,7 @@ def main() -> None:
                 first = timed(lambda st=stack, m=model, o=options: st.eval(wi[:10], wo[:10], m, **o))
             except ValueError:
                 continue  # a model that cannot represent the stack
-            fns[f"{label} | {stack_label}"] = (lambda st=stack, m=model, o=options: st.eval(wi, wo, m, **o))
+            fns[f"{label} | {stack_label}"] = lambda st=stack, m=model, o=options: st.eval(wi, wo, m, **o)
             prepare[f"{label} | {stack_label}"] = first
     rows = measure(fns)
     mitsuba_t = rows.pop("Mitsuba 3 llvm_ad_rgb roughconductor (one lobe)")[0]
@@ -98,16 +107,22 @@ def main() -> None:
     ]
     for key, (t, _) in rows.items():
         label, stack_label = key.split(" | ")
-        lines.append(f"| {label} | {stack_label} | {prepare[key]:.4f} | {t:.4f} | {N / t:,.0f} | "
-                     f"{mitsuba_t / t:.2f}x |")
+        lines.append(
+            f"| {label} | {stack_label} | {prepare[key]:.4f} | {t:.4f} | {N / t:,.0f} | {mitsuba_t / t:.2f}x |"
+        )
     iso = {k.split(" | ")[0]: t for k, (t, _) in rows.items() if k.endswith("| 2 layers")}
     aniso = {k.split(" | ")[0]: t for k, (t, _) in rows.items() if k.endswith("anisotropic")}
     cost = "; ".join(f"{k}: {aniso[k] / iso[k]:.2f}x" for k in aniso if k in iso)
     q = np.percentile(paired_ratios(fns["belcour | 2 layers"], fns["belcour | 2 layers, anisotropic"]), [25, 50, 75])
-    lines += ["", f"Anisotropic / isotropic 2-layer cost (medians above): {cost}.", "",
-              f"Belcour anisotropic / isotropic, paired (the two calls back to back, in alternating order, "
-              f"{PAIRS} pairs; the ratio per pair cancels the machine's slower drifts): median {q[1]:.2f}x, "
-              f"quartiles {q[0]:.2f}x to {q[2]:.2f}x.", ""]
+    lines += [
+        "",
+        f"Anisotropic / isotropic 2-layer cost (medians above): {cost}.",
+        "",
+        f"Belcour anisotropic / isotropic, paired (the two calls back to back, in alternating order, "
+        f"{PAIRS} pairs; the ratio per pair cancels the machine's slower drifts): median {q[1]:.2f}x, "
+        f"quartiles {q[0]:.2f}x to {q[2]:.2f}x.",
+        "",
+    ]
     out = write_section("benchmarks.md", "Benchmarks", "layered", lines)
     print("\n".join(lines))
     print(f"wrote {out}", file=sys.stderr)

@@ -10,9 +10,8 @@ from __future__ import annotations
 import os
 import time
 
-import numpy as np
-
 import lamina
+import numpy as np
 from docs_section import write_section
 
 N_F = int(os.environ.get("LAMINA_BENCH_REF_N", 200_000))
@@ -33,7 +32,8 @@ def main():
         f"f: NEE estimator at θo = 45°, φo = 150° ({N_F:,} estimates); albedo: brute-force walk ({N_ALBEDO:,} paths). "
         "Time to 1% = time for the channel with the largest relative standard error to reach 1%, from the 1/√N law.",
         "",
-        "| material | f (green) | f: estimates/s | f: time to 1% (s) | albedo (green) | albedo: paths/s | albedo: time to 1% (s) |",
+        "| material | f (green) | f: estimates/s | f: time to 1% (s) | albedo (green) | albedo: paths/s "
+        "| albedo: time to 1% (s) |",
         "|---|---:|---:|---:|---:|---:|---:|",
     ]
     for name in lamina.materials.SUITE:
@@ -47,8 +47,9 @@ def main():
         ta = time.perf_counter() - t0
         t_f = tf * (np.max(se / f) / 0.01) ** 2
         t_a = ta * (np.max(ase / a) / 0.01) ** 2
-        lines.append(f"| {name} | {f[1]:.4g} | {N_F / tf:,.0f} | {t_f:.3g} | {a[1]:.4f} | {N_ALBEDO / ta:,.0f} | "
-                     f"{t_a:.2g} |")
+        lines.append(
+            f"| {name} | {f[1]:.4g} | {N_F / tf:,.0f} | {t_f:.3g} | {a[1]:.4f} | {N_ALBEDO / ta:,.0f} | {t_a:.2g} |"
+        )
         print(lines[-1], flush=True)
     cpu = next((ln.split(":", 1)[1].strip() for ln in open("/proc/cpuinfo") if ln.startswith("model name")), "?")
     lines += ["", f"Machine: {cpu}, {os.cpu_count()} logical cores, lamina {lamina.__version__}.", ""]

@@ -15,9 +15,8 @@ import json
 import time
 from pathlib import Path
 
-import numpy as np
-
 import lamina
+import numpy as np
 from lamina import Conductor, Dielectric, Diffuse, Stack
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -25,14 +24,42 @@ BATCH = 1 << 20
 
 #: Option variants per model: every value of every option, one option changed at a time from the defaults.
 VARIANTS = {
-    "microfacet": [{}, {"distribution": "beckmann"}, {"g2": "separable"}, {"g2": "v_cavity"}, {"fresnel": "schlick"},
-                   {"fresnel": "lazanyi"}],
-    "belcour": [{}, {"symmetric": True}, {"tir": "transmittance"}, {"tir": "fraction"}, {"cosines": "real"},
-                {"jacobian": "j21"}, {"energy": "fresnel"}, {"tabulated": False}, {"g2": "separable"}],
-    "steinberg": [{}, {"lut": "fitted"}, {"fresnel": "lazanyi"}, {"fresnel": "schlick"}, {"clamp_roughness": False},
-                  {"eta2": False}, {"g2": "v_cavity"}],
-    "weidlich_wilkie": [{}, {"precomputed": True}, {"fresnel": "lazanyi"}, {"distribution": "ggx"},
-                        {"g2": "height_correlated"}, {"clamp_roughness": False, "eta2": False}],
+    "microfacet": [
+        {},
+        {"distribution": "beckmann"},
+        {"g2": "separable"},
+        {"g2": "v_cavity"},
+        {"fresnel": "schlick"},
+        {"fresnel": "lazanyi"},
+    ],
+    "belcour": [
+        {},
+        {"symmetric": True},
+        {"tir": "transmittance"},
+        {"tir": "fraction"},
+        {"cosines": "real"},
+        {"jacobian": "j21"},
+        {"energy": "fresnel"},
+        {"tabulated": False},
+        {"g2": "separable"},
+    ],
+    "steinberg": [
+        {},
+        {"lut": "fitted"},
+        {"fresnel": "lazanyi"},
+        {"fresnel": "schlick"},
+        {"clamp_roughness": False},
+        {"eta2": False},
+        {"g2": "v_cavity"},
+    ],
+    "weidlich_wilkie": [
+        {},
+        {"precomputed": True},
+        {"fresnel": "lazanyi"},
+        {"distribution": "ggx"},
+        {"g2": "height_correlated"},
+        {"clamp_roughness": False, "eta2": False},
+    ],
 }
 
 
@@ -49,20 +76,32 @@ def random_stack(rng) -> Stack:
     """A random stack of 0–3 dielectric layers over a conductor or diffuse base, extremes included."""
     layers = []
     for _ in range(rng.integers(0, 4)):
-        layers.append(Dielectric(
-            ior=float(_pick(rng, 1.0 + 1e-9, 1.0001, 1.0 + 2 * rng.random(), 0.8 + 0.4 * rng.random(), 3.0)),
-            roughness=_roughness(rng), angle=float(rng.uniform(-4, 4)),
-            thickness=float(_pick(rng, 0.0, 1e-6, 5 * rng.random(), 1e4)),
-            sigma_a=float(_pick(rng, 0.0, 10 * rng.random(), 1e6)),
-            sigma_s=float(_pick(rng, 0.0, 10 * rng.random(), 1e6)),
-            g=float(_pick(rng, 0.0, 0.999, -0.999, rng.uniform(-0.9, 0.9)))))
+        layers.append(
+            Dielectric(
+                ior=float(_pick(rng, 1.0 + 1e-9, 1.0001, 1.0 + 2 * rng.random(), 0.8 + 0.4 * rng.random(), 3.0)),
+                roughness=_roughness(rng),
+                angle=float(rng.uniform(-4, 4)),
+                thickness=float(_pick(rng, 0.0, 1e-6, 5 * rng.random(), 1e4)),
+                sigma_a=float(_pick(rng, 0.0, 10 * rng.random(), 1e6)),
+                sigma_s=float(_pick(rng, 0.0, 10 * rng.random(), 1e6)),
+                g=float(_pick(rng, 0.0, 0.999, -0.999, rng.uniform(-0.9, 0.9))),
+            )
+        )
     if rng.random() < 0.6:
-        layers.append(Conductor(ior=float(_pick(rng, 0.05, 1.0, 3 * rng.random() + 0.01)),
-                                k=float(_pick(rng, 0.0, 10 * rng.random(), 10.0)), roughness=_roughness(rng),
-                                angle=float(rng.uniform(-4, 4))))
+        layers.append(
+            Conductor(
+                ior=float(_pick(rng, 0.05, 1.0, 3 * rng.random() + 0.01)),
+                k=float(_pick(rng, 0.0, 10 * rng.random(), 10.0)),
+                roughness=_roughness(rng),
+                angle=float(rng.uniform(-4, 4)),
+            )
+        )
     else:
-        layers.append(Diffuse(albedo=float(_pick(rng, 0.0, 1.0, rng.random())),
-                              roughness=float(_pick(rng, 0.0, 1.0, rng.random()))))
+        layers.append(
+            Diffuse(
+                albedo=float(_pick(rng, 0.0, 1.0, rng.random())), roughness=float(_pick(rng, 0.0, 1.0, rng.random()))
+            )
+        )
     return Stack(layers, ext_ior=float(_pick(rng, 1.0, 1.0, 1.33)))
 
 
@@ -122,10 +161,15 @@ def main() -> None:
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--out", type=Path, default=ROOT / "docs" / "fuzz.json")
     args = ap.parse_args()
-    rows = list(itertools.chain.from_iterable(fuzz_model(m, args.pairs, args.seed) for m in lamina.MODELS
-                                              if m != "reference"))
-    args.out.write_text(json.dumps({"pairs_per_model": args.pairs, "seed": args.seed, "lamina": lamina.__version__,
-                                    "rows": rows}, indent=1) + "\n")
+    rows = list(
+        itertools.chain.from_iterable(fuzz_model(m, args.pairs, args.seed) for m in lamina.MODELS if m != "reference")
+    )
+    args.out.write_text(
+        json.dumps(
+            {"pairs_per_model": args.pairs, "seed": args.seed, "lamina": lamina.__version__, "rows": rows}, indent=1
+        )
+        + "\n"
+    )
     bad = sum(r["nan"] + r["inf"] + r["negative"] for r in rows)
     print(f"wrote {args.out}: {sum(r['evaluations'] for r in rows):.3g} evaluations, {bad} NaN/Inf/negative")
 

@@ -16,9 +16,8 @@ import sys
 from pathlib import Path
 from typing import Callable, List, Optional, Tuple
 
-import numpy as np
-
 import lamina
+import numpy as np
 from lamina import Conductor, Dielectric, Diffuse, Spectrum, Stack, materials, optics
 from lamina.catalogue import model
 from lamina.spectrum import ior, to_xyz, xyz_weights
@@ -93,8 +92,10 @@ def _stack_cases() -> List[Case]:
     return [
         ("Stack([])", lambda: Stack([])),
         ("Stack([Dielectric(1.5)])  (no opaque base)", lambda: Stack([Dielectric(1.5)])),
-        ("Stack([Diffuse(0.5), Dielectric(1.5)])  (opaque layer not last)",
-         lambda: Stack([Diffuse(0.5), Dielectric(1.5)])),
+        (
+            "Stack([Diffuse(0.5), Dielectric(1.5)])  (opaque layer not last)",
+            lambda: Stack([Diffuse(0.5), Dielectric(1.5)]),
+        ),
         ("Stack([Conductor(...), Diffuse(0.5)])  (two opaque layers)", lambda: Stack([metal, Diffuse(0.5)])),
         ("Stack([Conductor(...)], ext_ior=0)", lambda: Stack([metal], ext_ior=0)),
         ("Stack([Conductor(...)], ext_ior=-1.0)", lambda: Stack([metal], ext_ior=-1.0)),
@@ -115,25 +116,39 @@ def _array_cases() -> List[Case]:
         ("gold.eval([nan, 0, 1], wo)", lambda: _gold().eval([NAN, 0, 1.0], WO)),
         ("gold.eval(wi, [inf, 0, 1])", lambda: _gold().eval(W, [INF, 0, 1.0])),
         ("gold.eval([0, 0, 0], wo)  (zero-length direction)", lambda: _gold().eval([0, 0, 0.0], WO)),
-        ("gold.eval(np.ones((4, 3)), np.ones((5, 3)))  (shapes do not broadcast)",
-         lambda: _gold().eval(np.ones((4, 3)), np.ones((5, 3)))),
-        ("gold.eval(np.array([0, 0, 1 + 0j]), wo)  (complex dtype)",
-         lambda: _gold().eval(np.array([0, 0, 1 + 0j]), WO)),
-        ("gold.eval(np.array([0, 0, 1], dtype=object), wo)",
-         lambda: _gold().eval(np.array([0, 0, 1.0], dtype=object), WO)),
+        (
+            "gold.eval(np.ones((4, 3)), np.ones((5, 3)))  (shapes do not broadcast)",
+            lambda: _gold().eval(np.ones((4, 3)), np.ones((5, 3))),
+        ),
+        (
+            "gold.eval(np.array([0, 0, 1 + 0j]), wo)  (complex dtype)",
+            lambda: _gold().eval(np.array([0, 0, 1 + 0j]), WO),
+        ),
+        (
+            "gold.eval(np.array([0, 0, 1], dtype=object), wo)",
+            lambda: _gold().eval(np.array([0, 0, 1.0], dtype=object), WO),
+        ),
         ("gold.eval(np.array(['0', '0', '1']), wo)", lambda: _gold().eval(np.array(["0", "0", "1"]), WO)),
-        ("gold.eval(np.array([0, 0, 1], dtype=np.float16), wo)",
-         lambda: _gold().eval(np.array([0, 0, 1], dtype=np.float16), WO)),
+        (
+            "gold.eval(np.array([0, 0, 1], dtype=np.float16), wo)",
+            lambda: _gold().eval(np.array([0, 0, 1], dtype=np.float16), WO),
+        ),
         ("gold.eval(None, wo)", lambda: _gold().eval(None, WO)),
         ("gold.eval([[0, 0, 1], [0, 1]], wo)  (ragged list)", lambda: _gold().eval([[0, 0, 1.0], [0, 1.0]], WO)),
-        ("gold.reference(np.zeros((0, 3)), wo, samples=16)",
-         lambda: _gold().reference(np.zeros((0, 3)), WO, samples=16)),
-        ("gold.reference([0, 0, -1], wo, samples=16)  (below the horizon)",
-         lambda: _gold().reference([0, 0, -1.0], WO, samples=16)),
+        (
+            "gold.reference(np.zeros((0, 3)), wo, samples=16)",
+            lambda: _gold().reference(np.zeros((0, 3)), WO, samples=16),
+        ),
+        (
+            "gold.reference([0, 0, -1], wo, samples=16)  (below the horizon)",
+            lambda: _gold().reference([0, 0, -1.0], WO, samples=16),
+        ),
         ("gold.reference([nan, 0, 1], wo, samples=16)", lambda: _gold().reference([NAN, 0, 1.0], WO, samples=16)),
         ("gold.albedo(np.zeros((0, 3)))", lambda: _gold().albedo(np.zeros((0, 3)))),
-        ("gold.albedo(np.zeros((0, 3)), 'reference', samples=16)",
-         lambda: _gold().albedo(np.zeros((0, 3)), "reference", samples=16)),
+        (
+            "gold.albedo(np.zeros((0, 3)), 'reference', samples=16)",
+            lambda: _gold().albedo(np.zeros((0, 3)), "reference", samples=16),
+        ),
         ("coated.lobes(np.zeros((0, 3)))", lambda: _coated().lobes(np.zeros((0, 3)))),
         ("coated.lobes([0, 0, 0])", lambda: _coated().lobes([0, 0, 0.0])),
         ("gold.specular(np.ones(2))", lambda: _gold().specular(np.ones(2))),
@@ -152,14 +167,22 @@ def _wavelength_cases() -> List[Case]:
         ("gold.eval(wi, wo, wavelengths=[nan])", lambda: _gold().eval(W, WO, wavelengths=[NAN])),
         ("gold.eval(wi, wo, wavelengths=[[500, 600]])", lambda: _gold().eval(W, WO, wavelengths=[[500, 600]])),
         ("gold.eval(wi, wo, wavelengths='red')", lambda: _gold().eval(W, WO, wavelengths="red")),
-        ("gold.eval(wi, wo, wavelengths=[100])  (outside gold's measured table)",
-         lambda: _gold().eval(W, WO, wavelengths=[100])),
-        ("gold.reference(wi, wo, wavelengths=[5000], samples=16)",
-         lambda: _gold().reference(W, WO, wavelengths=[5000], samples=16)),
-        ("Stack([Dielectric(1.5, 0.1), Diffuse((0.5, 0.4, 0.3))]).eval(..., 'belcour', wavelengths=[500])",
-         lambda: _plastic_rgb().eval(W, WO, "belcour", wavelengths=[500])),
-        ("Dielectric(Spectrum(..., negative at 620 nm)) over Diffuse: .eval(..., 'belcour', wavelengths=[620])",
-         lambda: spiky().eval(W, WO, "belcour", wavelengths=[620])),
+        (
+            "gold.eval(wi, wo, wavelengths=[100])  (outside gold's measured table)",
+            lambda: _gold().eval(W, WO, wavelengths=[100]),
+        ),
+        (
+            "gold.reference(wi, wo, wavelengths=[5000], samples=16)",
+            lambda: _gold().reference(W, WO, wavelengths=[5000], samples=16),
+        ),
+        (
+            "Stack([Dielectric(1.5, 0.1), Diffuse((0.5, 0.4, 0.3))]).eval(..., 'belcour', wavelengths=[500])",
+            lambda: _plastic_rgb().eval(W, WO, "belcour", wavelengths=[500]),
+        ),
+        (
+            "Dielectric(Spectrum(..., negative at 620 nm)) over Diffuse: .eval(..., 'belcour', wavelengths=[620])",
+            lambda: spiky().eval(W, WO, "belcour", wavelengths=[620]),
+        ),
         ("coated.lobes(wo, wavelengths=[100])", lambda: _coated().lobes(WO, wavelengths=[100])),
     ]
 
@@ -172,24 +195,35 @@ def _model_cases() -> List[Case]:
         ("gold.eval(wi, wo, 3)", lambda: _gold().eval(W, WO, 3)),
         ("from lamina.catalogue import model; model('phong')", lambda: model("phong")),
         ("coated.eval(wi, wo)  (layered stack, default model 'microfacet')", lambda: _coated().eval(W, WO)),
-        ("coated.eval(wi, wo, 'belcour', lut='fitted')  (option of steinberg)",
-         lambda: _coated().eval(W, WO, "belcour", lut="fitted")),
+        (
+            "coated.eval(wi, wo, 'belcour', lut='fitted')  (option of steinberg)",
+            lambda: _coated().eval(W, WO, "belcour", lut="fitted"),
+        ),
         ("gold.eval(wi, wo, bogus=1)", lambda: _gold().eval(W, WO, bogus=1)),
         ("gold.eval(wi, wo, fresnel='bogus')", lambda: _gold().eval(W, WO, fresnel="bogus")),
         ("gold.eval(wi, wo, distribution=None)", lambda: _gold().eval(W, WO, distribution=None)),
-        ("coated.eval(wi, wo, 'belcour', symmetric='yes')",
-         lambda: _coated().eval(W, WO, "belcour", symmetric="yes")),
-        ("coated.eval(wi, wo, 'steinberg', clamp_roughness=1)",
-         lambda: _coated().eval(W, WO, "steinberg", clamp_roughness=1)),
-        ("coated.eval(wi, wo, 'weidlich_wilkie', extent=2)",
-         lambda: _coated().eval(W, WO, "weidlich_wilkie", extent=2)),
-        ("coated.eval(wi, wo, 'weidlich_wilkie', transition=float('nan'))",
-         lambda: _coated().eval(W, WO, "weidlich_wilkie", transition=NAN)),
-        ("coated.eval(wi, wo, 'weidlich_wilkie', tint=(1, 1))",
-         lambda: _coated().eval(W, WO, "weidlich_wilkie", tint=(1, 1))),
+        ("coated.eval(wi, wo, 'belcour', symmetric='yes')", lambda: _coated().eval(W, WO, "belcour", symmetric="yes")),
+        (
+            "coated.eval(wi, wo, 'steinberg', clamp_roughness=1)",
+            lambda: _coated().eval(W, WO, "steinberg", clamp_roughness=1),
+        ),
+        (
+            "coated.eval(wi, wo, 'weidlich_wilkie', extent=2)",
+            lambda: _coated().eval(W, WO, "weidlich_wilkie", extent=2),
+        ),
+        (
+            "coated.eval(wi, wo, 'weidlich_wilkie', transition=float('nan'))",
+            lambda: _coated().eval(W, WO, "weidlich_wilkie", transition=NAN),
+        ),
+        (
+            "coated.eval(wi, wo, 'weidlich_wilkie', tint=(1, 1))",
+            lambda: _coated().eval(W, WO, "weidlich_wilkie", tint=(1, 1)),
+        ),
         ("coated.eval(wi, wo, 'weidlich_wilkie', tint=-1)", lambda: _coated().eval(W, WO, "weidlich_wilkie", tint=-1)),
-        ("gold.eval(wi, wo, 'weidlich_wilkie', tint=(1, 1, 1), wavelengths=[500, 600])",
-         lambda: _gold().eval(W, WO, "weidlich_wilkie", tint=(1, 1, 1), wavelengths=[500, 600])),
+        (
+            "gold.eval(wi, wo, 'weidlich_wilkie', tint=(1, 1, 1), wavelengths=[500, 600])",
+            lambda: _gold().eval(W, WO, "weidlich_wilkie", tint=(1, 1, 1), wavelengths=[500, 600]),
+        ),
         ("gold.specular(wo, fresnel='bogus')", lambda: _gold().specular(WO, fresnel="bogus")),
         ("gold.pdf(wi, wo, g2='smith')", lambda: _gold().pdf(W, WO, g2="smith")),
         ("gold.lobes(wo, 'microfacet')", lambda: _gold().lobes(WO, "microfacet")),
@@ -205,17 +239,19 @@ def _input_cases() -> List[Case]:
         ("Patina().eval(wi, wo, mask=1.5)", lambda: materials.Patina().eval(W, WO, 1.5)),
         ("Patina().eval(wi, wo, mask=-0.5)", lambda: materials.Patina().eval(W, WO, -0.5)),
         ("Patina().eval(wi, wo, mask=float('nan'))", lambda: materials.Patina().eval(W, WO, NAN)),
-        ("Patina().eval(np.ones((4, 3)), wo, mask=np.zeros(5))  (shapes do not broadcast)",
-         lambda: materials.Patina().eval(np.ones((4, 3)), WO, np.zeros(5))),
-        ("car_paint().eval(..., 'weidlich_wilkie', flake_normal=np.zeros(2))",
-         lambda: car(flake_normal=np.zeros(2))),
+        (
+            "Patina().eval(np.ones((4, 3)), wo, mask=np.zeros(5))  (shapes do not broadcast)",
+            lambda: materials.Patina().eval(np.ones((4, 3)), WO, np.zeros(5)),
+        ),
+        ("car_paint().eval(..., 'weidlich_wilkie', flake_normal=np.zeros(2))", lambda: car(flake_normal=np.zeros(2))),
         ("car_paint().eval(..., 'weidlich_wilkie', flake_normal=[20, 0, 0])", lambda: car(flake_normal=[20, 0, 0.0])),
-        ("car_paint().eval(..., 'weidlich_wilkie', flake_normal=[nan, 0, 0])",
-         lambda: car(flake_normal=[NAN, 0, 0.0])),
+        ("car_paint().eval(..., 'weidlich_wilkie', flake_normal=[nan, 0, 0])", lambda: car(flake_normal=[NAN, 0, 0.0])),
         ("car_paint().eval(..., 'weidlich_wilkie', distance=-1.0)", lambda: car(distance=-1.0)),
         ("gold.eval(wi, wo, mask=0.5)  (input microfacet does not declare)", lambda: _gold().eval(W, WO, mask=0.5)),
-        ("coated.eval(wi, wo, 'steinberg', flake_normal=[0, 0, 0])",
-         lambda: _coated().eval(W, WO, "steinberg", flake_normal=[0, 0, 0.0])),
+        (
+            "coated.eval(wi, wo, 'steinberg', flake_normal=[0, 0, 0])",
+            lambda: _coated().eval(W, WO, "steinberg", flake_normal=[0, 0, 0.0]),
+        ),
         ("coated.pdf(wi, wo, 'weidlich_wilkie', mask=0.5)", lambda: _coated().pdf(W, WO, "weidlich_wilkie", mask=0.5)),
     ]
 
@@ -246,22 +282,30 @@ def _reference_cases() -> List[Case]:
         ("gold.reference(wi, wo, samples=16, seed=-1)", lambda: _gold().reference(W, WO, samples=16, seed=-1)),
         ("gold.reference(wi, wo, samples=16, seed=2**64)", lambda: _gold().reference(W, WO, samples=16, seed=2**64)),
         ("gold.reference(wi, wo, samples=16, seed=1.5)", lambda: _gold().reference(W, WO, samples=16, seed=1.5)),
-        ("gold.reference(wi, wo, samples=16, distribution='phong')",
-         lambda: _gold().reference(W, WO, samples=16, distribution="phong")),
+        (
+            "gold.reference(wi, wo, samples=16, distribution='phong')",
+            lambda: _gold().reference(W, WO, samples=16, distribution="phong"),
+        ),
         ("gold.reference(wi, wo, samples=16, g2='smith')", lambda: _gold().reference(W, WO, samples=16, g2="smith")),
         ("gold.eval(wi, wo, 'reference', samples=1)", lambda: _gold().eval(W, WO, "reference", samples=1)),
-        ("gold.eval(wi, wo, 'reference', samples=16, fresnel='exact')",
-         lambda: _gold().eval(W, WO, "reference", samples=16, fresnel="exact")),
+        (
+            "gold.eval(wi, wo, 'reference', samples=16, fresnel='exact')",
+            lambda: _gold().eval(W, WO, "reference", samples=16, fresnel="exact"),
+        ),
         ("gold.albedo(wi, 'reference', samples=1)", lambda: _gold().albedo(W, "reference", samples=1)),
-        ("gold.albedo(wi, 'reference', samples=16, g2='smith')",
-         lambda: _gold().albedo(W, "reference", samples=16, g2="smith")),
+        (
+            "gold.albedo(wi, 'reference', samples=16, g2='smith')",
+            lambda: _gold().albedo(W, "reference", samples=16, g2="smith"),
+        ),
         ("gold.reference_lobe(wi, bins=(100000, 100000), samples=16)", lambda: lobe((100_000, 100_000))),
         ("gold.reference_lobe(wi, bins=(-1, 3), samples=16)", lambda: lobe((-1, 3))),
         ("gold.reference_lobe(wi, bins=(0, 3), samples=16)", lambda: lobe((0, 3))),
         ("gold.reference_lobe(wi, bins=(2.5, 3), samples=16)", lambda: lobe((2.5, 3))),
         ("gold.reference_lobe(wi, bins=18, samples=16)", lambda: lobe(18)),
-        ("gold.reference_lobe(np.ones((2, 3)), samples=16)",
-         lambda: _gold().reference_lobe(np.ones((2, 3)), samples=16)),
+        (
+            "gold.reference_lobe(np.ones((2, 3)), samples=16)",
+            lambda: _gold().reference_lobe(np.ones((2, 3)), samples=16),
+        ),
         ("gold.reference_lobe(wi, samples=1)", lambda: _gold().reference_lobe(W, samples=1)),
     ]
 
@@ -274,8 +318,10 @@ def _spectrum_cases() -> List[Case]:
         ("Spectrum([500, 600], [1, nan])", lambda: Spectrum([500, 600], [1, NAN])),
         ("Spectrum([500, 600], [[1, 2]])", lambda: Spectrum([500, 600], [[1, 2]])),
         ("Spectrum([-500, 600], [1, 2])", lambda: Spectrum([-500, 600], [1, 2])),
-        ("Spectrum([500, 600], [1, 2], extrapolate=False)(700)",
-         lambda: Spectrum([500, 600], [1, 2], extrapolate=False)(700)),
+        (
+            "Spectrum([500, 600], [1, 2], extrapolate=False)(700)",
+            lambda: Spectrum([500, 600], [1, 2], extrapolate=False)(700),
+        ),
         ("lamina.spectrum.ior('Gold')", lambda: ior("Gold")),
         ("lamina.to_xyz([500, 600], np.zeros((4, 3)))", lambda: to_xyz([500, 600], np.zeros((4, 3)))),
         ("lamina.xyz_weights([600, 500])", lambda: xyz_weights([600, 500])),
@@ -290,10 +336,14 @@ def _optics_cases() -> List[Case]:
         ("optics.ndf(m, 0.3, distribution='phong')", lambda: optics.ndf(W, 0.3, distribution="phong")),
         ("optics.ndf([nan, 0, 1], 0.3)", lambda: optics.ndf([NAN, 0, 1.0], 0.3)),
         ("optics.smith_lambda(w, -0.1)", lambda: optics.smith_lambda(WO, -0.1)),
-        ("optics.masking_shadowing(wi, wo, m, 0.3, g2='smith')",
-         lambda: optics.masking_shadowing(W, WO, W, 0.3, g2="smith")),
-        ("optics.sample_visible_normal(wi, [0.5, 0.5, 0.5], 0.3)  (u of width 3)",
-         lambda: optics.sample_visible_normal(W, U, 0.3)),
+        (
+            "optics.masking_shadowing(wi, wo, m, 0.3, g2='smith')",
+            lambda: optics.masking_shadowing(W, WO, W, 0.3, g2="smith"),
+        ),
+        (
+            "optics.sample_visible_normal(wi, [0.5, 0.5, 0.5], 0.3)  (u of width 3)",
+            lambda: optics.sample_visible_normal(W, U, 0.3),
+        ),
         ("optics.sample_visible_normal(wi, [1.5, 0.5], 0.3)", lambda: optics.sample_visible_normal(W, [1.5, 0.5], 0.3)),
         ("optics.visible_normal_pdf(wi, m, 0.0)", lambda: optics.visible_normal_pdf(W, W, 0.0)),
         ("optics.fresnel_dielectric(0.5, 0.0)", lambda: optics.fresnel_dielectric(0.5, 0.0)),
@@ -305,17 +355,23 @@ def _optics_cases() -> List[Case]:
         ("optics.fresnel_lazanyi(1.5, 0.2, 3.0)  (cos_i > 1)", lambda: optics.fresnel_lazanyi(1.5, 0.2, 3.0)),
         ("optics.fresnel_schlick(0.5, 1.5)  (f0 > 1)", lambda: optics.fresnel_schlick(0.5, 1.5)),
         ("optics.fresnel_diffuse_reflectance(0.0)", lambda: optics.fresnel_diffuse_reflectance(0.0)),
-        ("optics.rough_conductor(wi, wo, [0.2, 0.3], [3.0], 0.3)",
-         lambda: optics.rough_conductor(W, WO, [0.2, 0.3], [3.0], 0.3)),
-        ("optics.rough_conductor(wi, wo, 0.2, 3.0, 0.3, g2='smith')",
-         lambda: optics.rough_conductor(W, WO, 0.2, 3.0, 0.3, g2="smith")),
+        (
+            "optics.rough_conductor(wi, wo, [0.2, 0.3], [3.0], 0.3)",
+            lambda: optics.rough_conductor(W, WO, [0.2, 0.3], [3.0], 0.3),
+        ),
+        (
+            "optics.rough_conductor(wi, wo, 0.2, 3.0, 0.3, g2='smith')",
+            lambda: optics.rough_conductor(W, WO, 0.2, 3.0, 0.3, g2="smith"),
+        ),
         ("optics.rough_dielectric(wi, wo, 0.0, 0.3)", lambda: optics.rough_dielectric(W, WO, 0.0, 0.3)),
         ("optics.rough_dielectric(wi, wo, 'glass', 0.3)", lambda: optics.rough_dielectric(W, WO, "glass", 0.3)),
         ("optics.rough_dielectric(wi, wo, [], 0.3)", lambda: optics.rough_dielectric(W, WO, [], 0.3)),
         ("lamina.jacobian_reflect(2.0)", lambda: lamina.jacobian_reflect(2.0)),
         ("lamina.jacobian_refract(0.3, eta=0.0)", lambda: lamina.jacobian_refract(0.3, eta=0.0)),
-        ("lamina.jacobian_refract(1.2, eta=0.5)  (total internal reflection)",
-         lambda: lamina.jacobian_refract(1.2, eta=0.5)),
+        (
+            "lamina.jacobian_refract(1.2, eta=0.5)  (total internal reflection)",
+            lambda: lamina.jacobian_refract(1.2, eta=0.5),
+        ),
         ("optics.steinberg_lut(0.0, 0.3, 1.5)", lambda: optics.steinberg_lut(0.0, 0.3, 1.5)),
         ("optics.steinberg_lut(0.5, 0.3, 10.0)", lambda: optics.steinberg_lut(0.5, 0.3, 10.0)),
         ("optics.steinberg_lut(0.5, 0.3, 1.5, lut='bogus')", lambda: optics.steinberg_lut(0.5, 0.3, 1.5, lut="bogus")),
@@ -348,14 +404,25 @@ def _material_cases() -> List[Case]:
 
 def bad_inputs() -> List[Case]:
     """Every case: (the input as a user would write it, a zero-argument callable that should raise)."""
-    return (_layer_cases() + _stack_cases() + _array_cases() + _wavelength_cases() + _model_cases() + _input_cases()
-            + _sampling_cases() + _reference_cases() + _spectrum_cases() + _optics_cases() + _material_cases())
+    return (
+        _layer_cases()
+        + _stack_cases()
+        + _array_cases()
+        + _wavelength_cases()
+        + _model_cases()
+        + _input_cases()
+        + _sampling_cases()
+        + _reference_cases()
+        + _spectrum_cases()
+        + _optics_cases()
+        + _material_cases()
+    )
 
 
 def first_line(text: str, limit: int = MESSAGE_CHARS) -> str:
     """The first non-empty line of `text`, truncated to `limit` characters."""
     line = next((ln.strip() for ln in str(text).splitlines() if ln.strip()), "")
-    return line if len(line) <= limit else line[:limit - 1] + "…"
+    return line if len(line) <= limit else line[: limit - 1] + "…"
 
 
 def summarize(value) -> str:
@@ -400,14 +467,22 @@ def run_all(cases: List[Case]) -> List[Tuple[str, str, str, bool]]:
 def bad_input_section(rows: List[Tuple[str, str, str, bool]]) -> List[str]:
     """The 'Bad input' section: one table row per case and a summary line."""
     clean = sum(r[3] for r in rows)
-    lines = ["## Bad input", "",
-             "Inputs a new user could write; each should raise a ValueError or TypeError that names the parameter.", "",
-             "| # | input | exception | message |", "|---:|---|---|---|"]
+    lines = [
+        "## Bad input",
+        "",
+        "Inputs a new user could write; each should raise a ValueError or TypeError that names the parameter.",
+        "",
+        "| # | input | exception | message |",
+        "|---:|---|---|---|",
+    ]
     for i, (description, name, message, ok) in enumerate(rows, 1):
         shown = name if ok else f"**{name}**"
         lines.append(f"| {i} | `{cell(description)}` | {shown} | {cell(message)} |")
-    lines += ["", f"{len(rows)} cases: {clean} raised ValueError or TypeError, {len(rows) - clean} raised anything "
-              "else or nothing."]
+    lines += [
+        "",
+        f"{len(rows)} cases: {clean} raised ValueError or TypeError, {len(rows) - clean} raised anything "
+        "else or nothing.",
+    ]
     return lines
 
 
@@ -445,12 +520,17 @@ def fuzz_section(path: Path = FUZZ) -> List[str]:
     if isinstance(loaded, str):
         return lines + [f"{loaded}: run `make fuzz` again, then this script."]
     rows, meta = loaded
-    lines.append("Random stacks, directions and options from `scripts/fuzz.py` (`make fuzz`); counts of output values "
-                 "that are NaN, Inf or negative.")
+    lines.append(
+        "Random stacks, directions and options from `scripts/fuzz.py` (`make fuzz`); counts of output values "
+        "that are NaN, Inf or negative."
+    )
     if meta:
         lines += ["", "; ".join(f"{k}: {v}" for k, v in meta.items()) + "."]
-    lines += ["", "| model | options | evaluations | NaN | Inf | negative | seconds |",
-              "|---|---|---:|---:|---:|---:|---:|"]
+    lines += [
+        "",
+        "| model | options | evaluations | NaN | Inf | negative | seconds |",
+        "|---|---|---:|---:|---:|---:|---:|",
+    ]
     keys = ("evaluations", "nan", "inf", "negative")
     totals = dict.fromkeys(keys, 0)
     seconds = 0.0
@@ -459,8 +539,11 @@ def fuzz_section(path: Path = FUZZ) -> List[str]:
         for k, c in zip(keys, counts):
             totals[k] += c
         seconds += _number(r, "seconds", float)
-        lines.append(f"| {cell(r.get('model', '?'))} | {cell(r.get('options') or '') or '—'} | "
-                     + " | ".join(f"{c:,}" for c in counts) + f" | {_number(r, 'seconds', float):.2f} |")
+        lines.append(
+            f"| {cell(r.get('model', '?'))} | {cell(r.get('options') or '') or '—'} | "
+            + " | ".join(f"{c:,}" for c in counts)
+            + f" | {_number(r, 'seconds', float):.2f} |"
+        )
     lines.append("| **total** | | " + " | ".join(f"**{totals[k]:,}**" for k in keys) + f" | **{seconds:.2f}** |")
     return lines
 

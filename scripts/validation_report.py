@@ -14,12 +14,11 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "tests"))
 
+import colour  # noqa: E402
 import lamina  # noqa: E402
+import mitsuba as mi  # noqa: E402
 from conftest import MI_RGB, mitsuba_f, random_hemisphere, unit  # noqa: E402
 from test_mitsuba import near_lobe_pairs, refract  # noqa: E402
-
-import colour  # noqa: E402
-import mitsuba as mi  # noqa: E402
 
 
 def rel_err(ours, ref):
@@ -41,10 +40,26 @@ def mitsuba_rows(rng):
                 ax, ay = lamina.layers._roughness(rough)
                 wi, wo = near_lobe_pairs(rng, 2000, 2 * max(ax, ay))
                 ours = lamina.optics.rough_conductor(wi, wo, eta, k, rough, distribution=dist, g2="separable")
-                ref = mitsuba_f({"type": "roughconductor", "distribution": dist, "alpha_u": ax, "alpha_v": ay,
-                                 "eta": rgb(eta), "k": rgb(k)}, wi, wo)
-                rows.append((f"roughconductor {dist} α={rough} {metal}", len(wi), *rel_err(ours, ref),
-                             "1e-4" if dist == "ggx" else "7e-3 (Mitsuba's Beckmann G1 fit)"))
+                ref = mitsuba_f(
+                    {
+                        "type": "roughconductor",
+                        "distribution": dist,
+                        "alpha_u": ax,
+                        "alpha_v": ay,
+                        "eta": rgb(eta),
+                        "k": rgb(k),
+                    },
+                    wi,
+                    wo,
+                )
+                rows.append(
+                    (
+                        f"roughconductor {dist} α={rough} {metal}",
+                        len(wi),
+                        *rel_err(ours, ref),
+                        "1e-4" if dist == "ggx" else "7e-3 (Mitsuba's Beckmann G1 fit)",
+                    )
+                )
     for dist in ("ggx", "beckmann"):
         for case in ("reflect outside", "reflect inside", "transmit from outside", "transmit from inside"):
             eta, alpha = 1.5, 0.3
@@ -67,23 +82,42 @@ def mitsuba_rows(rng):
                 wi, wo = wi[ok], wo[ok]
                 note += ", |w·h| > 0.05 (Mitsuba float32 conditioning)"
             ours = lamina.optics.rough_dielectric(wi, wo, [eta], alpha, distribution=dist, g2="separable")
-            ref = mitsuba_f({"type": "roughdielectric", "distribution": dist, "alpha": alpha, "int_ior": eta,
-                             "ext_ior": 1.0}, wi, wo)[:, :1]
+            ref = mitsuba_f(
+                {"type": "roughdielectric", "distribution": dist, "alpha": alpha, "int_ior": eta, "ext_ior": 1.0},
+                wi,
+                wo,
+            )[:, :1]
             rows.append((f"roughdielectric {dist} α=0.3 η=1.5 {case}", len(wi), *rel_err(ours, ref), note))
     wi, wo = random_hemisphere(rng, 2000), random_hemisphere(rng, 2000)
     ours = lamina.Stack([lamina.Diffuse((0.8, 0.35, 0.05))]).eval(wi, wo)
-    rows.append(("diffuse", len(wi), *rel_err(ours, mitsuba_f({"type": "diffuse", "reflectance": rgb((0.8, 0.35, 0.05))}, wi, wo)), "1e-4"))
+    rows.append(
+        (
+            "diffuse",
+            len(wi),
+            *rel_err(ours, mitsuba_f({"type": "diffuse", "reflectance": rgb((0.8, 0.35, 0.05))}, wi, wo)),
+            "1e-4",
+        )
+    )
     for eta in (1.33, 1.5, 2.0):
         albedo = np.array([0.9, 0.5, 0.1])
         ours = lamina.materials.plastic(albedo, ior=eta).eval(wi, wo)
-        ref = mitsuba_f({"type": "plastic", "int_ior": eta, "ext_ior": 1.0, "nonlinear": True,
-                         "diffuse_reflectance": rgb(albedo)}, wi, wo)
+        ref = mitsuba_f(
+            {"type": "plastic", "int_ior": eta, "ext_ior": 1.0, "nonlinear": True, "diffuse_reflectance": rgb(albedo)},
+            wi,
+            wo,
+        )
         rows.append((f"plastic nonlinear η={eta} (as is)", len(wi), *rel_err(ours, ref), "— (F̄_int differs)"))
         mi.set_variant("scalar_rgb")
         f_mi = float(mi.fresnel_diffuse_reflectance(1 / eta))
         f_us = float(lamina.optics.fresnel_diffuse_reflectance(1 / eta))
-        rows.append((f"plastic nonlinear η={eta}, Mitsuba's F̄_int substituted", len(wi),
-                     *rel_err(ours * (1 - albedo * f_us) / (1 - albedo * f_mi), ref), "1e-4"))
+        rows.append(
+            (
+                f"plastic nonlinear η={eta}, Mitsuba's F̄_int substituted",
+                len(wi),
+                *rel_err(ours * (1 - albedo * f_us) / (1 - albedo * f_mi), ref),
+                "1e-4",
+            )
+        )
     return rows
 
 
@@ -108,8 +142,15 @@ def colour_rows():
         sd = colour.SpectralDistribution(dict(zip(wl, refl)))
         ref = colour.sd_to_XYZ(sd, cmfs, colour.SDS_ILLUMINANTS["D65"], method="Integration") / 100
         srgb = lamina.to_srgb(wl, refl)
-        rows.append((metal, ours, float(np.max(np.abs(ours - ref))), srgb,
-                     float(np.max(np.abs(srgb - colour.XYZ_to_sRGB(ref, apply_cctf_encoding=False))))))
+        rows.append(
+            (
+                metal,
+                ours,
+                float(np.max(np.abs(ours - ref))),
+                srgb,
+                float(np.max(np.abs(srgb - colour.XYZ_to_sRGB(ref, apply_cctf_encoding=False)))),
+            )
+        )
     return rows
 
 
@@ -135,18 +176,27 @@ def direction(theta_deg, phi=0.0):
 
 def reference_section():
     """The Monte Carlo reference against closed forms, Mitsuba 3, and its energy bookkeeping."""
-    out = ["", "## Monte Carlo reference evaluator", "",
-           "`Stack.reference` (NEE estimator of f, MIS at rough tops) and `Stack.albedo(model='reference')` "
-           "(brute-force walk). Differences are given in standard errors (SE) of the estimate.", "",
-           "### Closed forms", "",
-           "| check | estimate | exact | difference / SE |", "|---|---|---|---:|"]
+    out = [
+        "",
+        "## Monte Carlo reference evaluator",
+        "",
+        "`Stack.reference` (NEE estimator of f, MIS at rough tops) and `Stack.albedo(model='reference')` "
+        "(brute-force walk). Differences are given in standard errors (SE) of the estimate.",
+        "",
+        "### Closed forms",
+        "",
+        "| check | estimate | exact | difference / SE |",
+        "|---|---|---|---:|",
+    ]
     albedo = np.array([0.9, 0.5, 0.1])
     plastic = lamina.materials.plastic(albedo, ior=1.5)
     for ti, to, po in ((0, 50, 1.0), (45, 10, 3.0), (80, 85, 2.0)):
         f, se = plastic.reference(direction(ti), direction(to, po), samples=400_000, seed=1)
         exact = plastic.eval(direction(ti), direction(to, po))
-        out.append(f"| smooth coat over Lambert, f, θi={ti}° θo={to}° | {np.round(f, 5).tolist()} | "
-                   f"{np.round(exact, 5).tolist()} | {np.max(np.abs(f - exact) / se):.2f} |")
+        out.append(
+            f"| smooth coat over Lambert, f, θi={ti}° θo={to}° | {np.round(f, 5).tolist()} | "
+            f"{np.round(exact, 5).tolist()} | {np.max(np.abs(f - exact) / se):.2f} |"
+        )
     eta, tau, rho = 1.5, 0.5, 0.8
     slab = lamina.Stack([lamina.Dielectric(eta, thickness=2.0, sigma_a=tau / 2), lamina.Diffuse(rho)])
     mu = (np.arange(1_000_000) + 0.5) / 1_000_000
@@ -158,55 +208,100 @@ def reference_section():
         mu_t = np.sqrt(1 - (1 - wi[2] ** 2) / eta**2)
         exact = fi + (1 - fi) * np.exp(-tau / mu_t) * rho * esc / (1 - rho * back)
         a, se = slab.albedo(wi, "reference", samples=1_000_000, seed=2)
-        out.append(f"| absorbing slab (τ = 0.5) under a smooth coat, albedo, θi={ti}° | {a[0]:.5f} | {exact:.5f} | "
-                   f"{abs(a[0] - exact) / se[0]:.2f} |")
-    for name, layers in (("smooth coat", [lamina.Dielectric(1.5), lamina.Diffuse(1.0)]),
-                         ("two scattering slabs", [lamina.Dielectric(1.5, thickness=1, sigma_s=3, g=0.6),
-                                                   lamina.Dielectric(1.3, thickness=0.5, sigma_s=1, g=-0.3),
-                                                   lamina.Diffuse(1.0)])):
+        out.append(
+            f"| absorbing slab (τ = 0.5) under a smooth coat, albedo, θi={ti}° | {a[0]:.5f} | {exact:.5f} | "
+            f"{abs(a[0] - exact) / se[0]:.2f} |"
+        )
+    for name, layers in (
+        ("smooth coat", [lamina.Dielectric(1.5), lamina.Diffuse(1.0)]),
+        (
+            "two scattering slabs",
+            [
+                lamina.Dielectric(1.5, thickness=1, sigma_s=3, g=0.6),
+                lamina.Dielectric(1.3, thickness=0.5, sigma_s=1, g=-0.3),
+                lamina.Diffuse(1.0),
+            ],
+        ),
+    ):
         a, se = lamina.Stack(layers).albedo(direction(35), "reference", samples=1_000_000, seed=3)
-        out.append(f"| white furnace: {name} over white Lambert, albedo | {a[0]:.6f} ± {se[0]:.1e} | 1 | "
-                   f"{abs(a[0] - 1) / max(se[0], 1e-300):.2f} |")
+        out.append(
+            f"| white furnace: {name} over white Lambert, albedo | {a[0]:.6f} ± {se[0]:.1e} | 1 | "
+            f"{abs(a[0] - 1) / max(se[0], 1e-300):.2f} |"
+        )
     conductor = lamina.Stack([lamina.Conductor(0.2, 3.6, roughness=(0.15, 0.6), angle=0.4)])
     for ti in (0, 60, 85):
         a, se = conductor.albedo(direction(ti, 0.3), "reference", samples=1_000_000, seed=4)
         q = conductor.albedo(direction(ti, 0.3))
-        out.append(f"| single rough conductor, albedo vs quadrature of f, θi={ti}° | {a[0]:.5f} | {q[0]:.5f} | "
-                   f"{abs(a[0] - q[0]) / se[0]:.2f} |")
+        out.append(
+            f"| single rough conductor, albedo vs quadrature of f, θi={ti}° | {a[0]:.5f} | {q[0]:.5f} | "
+            f"{abs(a[0] - q[0]) / se[0]:.2f} |"
+        )
     rhos = np.array([0.8, 0.4, 0.1])
     wis = [direction(t) for t in (0, 30, 60, 80)]
     wos = [direction(t, p) for t in (0, 30, 60, 80) for p in (np.pi / 4, np.pi)]
     WI = np.array([w for w in wis for _ in wos])
     WO = np.array([o for _ in wis for o in wos])
     f, se = plastic.reference(WI, WO, samples=400_000, seed=5, progress=False)
-    ref = mitsuba_f({"type": "plastic", "int_ior": 1.5, "ext_ior": 1.0, "nonlinear": True,
-                     "diffuse_reflectance": rgb(albedo)}, WI, WO)
-    out += ["", "### Against Mitsuba 3", "",
-            f"Mitsuba `plastic` (nonlinear) vs the reference on 4 x 8 direction pairs (400k paths each): max |Δ|/f = "
-            f"{np.max(np.abs(ref - f) / f):.2%} (issue tolerance 1%), max |Δ|/SE = {np.max(np.abs(ref - f) / se):.2f}, "
-            f"max SE/f = {np.max(se / f):.2%}; Mitsuba's F̄_int fit (above) accounts for up to 0.1%.", "",
-            "Mitsuba `roughplastic` (GGX, separable Smith, nonlinear, η = 1.5, ρ = (0.8, 0.4, 0.1)) vs the reference "
-            "(same G2) on the same pairs, 100k paths each. roughplastic approximates internal scattering by a "
-            "diffuse lobe scaled by tabulated rough transmittances, so it is not exact:", "",
-            "| alpha | median abs(Δ)/f | max abs(Δ)/f | max reference SE / f |", "|---:|---:|---:|---:|"]
+    ref = mitsuba_f(
+        {"type": "plastic", "int_ior": 1.5, "ext_ior": 1.0, "nonlinear": True, "diffuse_reflectance": rgb(albedo)},
+        WI,
+        WO,
+    )
+    out += [
+        "",
+        "### Against Mitsuba 3",
+        "",
+        f"Mitsuba `plastic` (nonlinear) vs the reference on 4 x 8 direction pairs (400k paths each): max |Δ|/f = "
+        f"{np.max(np.abs(ref - f) / f):.2%} (issue tolerance 1%), max |Δ|/SE = {np.max(np.abs(ref - f) / se):.2f}, "
+        f"max SE/f = {np.max(se / f):.2%}; Mitsuba's F̄_int fit (above) accounts for up to 0.1%.",
+        "",
+        "Mitsuba `roughplastic` (GGX, separable Smith, nonlinear, η = 1.5, ρ = (0.8, 0.4, 0.1)) vs the reference "
+        "(same G2) on the same pairs, 100k paths each. roughplastic approximates internal scattering by a "
+        "diffuse lobe scaled by tabulated rough transmittances, so it is not exact:",
+        "",
+        "| alpha | median abs(Δ)/f | max abs(Δ)/f | max reference SE / f |",
+        "|---:|---:|---:|---:|",
+    ]
     for alpha in (0.05, 0.1, 0.3, 0.5):
         st = lamina.Stack([lamina.Dielectric(1.5, alpha), lamina.Diffuse(rhos)])
         f, se = st.reference(WI, WO, samples=100_000, g2="separable", seed=6, progress=False)
-        ref = mitsuba_f({"type": "roughplastic", "distribution": "ggx", "alpha": alpha, "int_ior": 1.5,
-                         "ext_ior": 1.0, "nonlinear": True, "diffuse_reflectance": rgb(rhos)}, WI, WO)
+        ref = mitsuba_f(
+            {
+                "type": "roughplastic",
+                "distribution": "ggx",
+                "alpha": alpha,
+                "int_ior": 1.5,
+                "ext_ior": 1.0,
+                "nonlinear": True,
+                "diffuse_reflectance": rgb(rhos),
+            },
+            WI,
+            WO,
+        )
         rel = np.abs(ref - f) / f
         out.append(f"| {alpha} | {np.median(rel):.2%} | {rel.max():.2%} | {np.max(se / f):.2%} |")
     thetas = (0, 30, 60, 80, 87)
-    out += ["", "### Energy lost by rough interfaces (single-scattering microfacets)", "",
-            "1 − albedo of a rough GGX coat (η = 1.5, no absorption) over a white Lambertian base: the energy that "
-            "the microfacet interface loses (brute force, 400k paths, SE ≤ 1e-3).", "",
-            "| alpha \\ θi | " + " | ".join(f"{t}°" for t in thetas) + " |", "|---:|" + "---:|" * len(thetas)]
+    out += [
+        "",
+        "### Energy lost by rough interfaces (single-scattering microfacets)",
+        "",
+        "1 − albedo of a rough GGX coat (η = 1.5, no absorption) over a white Lambertian base: the energy that "
+        "the microfacet interface loses (brute force, 400k paths, SE ≤ 1e-3).",
+        "",
+        "| alpha \\ θi | " + " | ".join(f"{t}°" for t in thetas) + " |",
+        "|---:|" + "---:|" * len(thetas),
+    ]
     for alpha in (0.05, 0.1, 0.3, 0.5, 0.8, 1.0):
         st = lamina.Stack([lamina.Dielectric(1.5, alpha), lamina.Diffuse(1.0)])
         row = [1 - st.albedo(direction(t), "reference", samples=400_000, seed=7)[0][0] for t in thetas]
         out.append(f"| {alpha} | " + " | ".join(f"{v:.4f}" for v in row) + " |")
-    out += ["", "### The material suite (`lamina.materials.SUITE`): reference albedo (green channel)", "",
-            "| material | " + " | ".join(f"{t}°" for t in thetas) + " |", "|---|" + "---:|" * len(thetas)]
+    out += [
+        "",
+        "### The material suite (`lamina.materials.SUITE`): reference albedo (green channel)",
+        "",
+        "| material | " + " | ".join(f"{t}°" for t in thetas) + " |",
+        "|---|" + "---:|" * len(thetas),
+    ]
     for name in lamina.materials.SUITE:
         st = lamina.materials.suite(name)
         row = [st.albedo(direction(t), "reference", samples=200_000, seed=8)[0][1] for t in thetas]
@@ -230,8 +325,14 @@ def suite_table(model, **options):
     """Rows of lobe error and albedo error of `model` against the reference on the whole suite."""
     from lamina.reference import SUITE_THETAS, suite_reference
 
-    out = ["| material | lobe error " + " / ".join(f"{t:g}°" for t in SUITE_THETAS) + " | albedo error "
-           + " / ".join(f"{t:g}°" for t in SUITE_THETAS) + " |", "|---|---|---|"]
+    out = [
+        "| material | lobe error "
+        + " / ".join(f"{t:g}°" for t in SUITE_THETAS)
+        + " | albedo error "
+        + " / ".join(f"{t:g}°" for t in SUITE_THETAS)
+        + " |",
+        "|---|---|---|",
+    ]
     for name in lamina.materials.SUITE:
         stack = lamina.materials.suite(name)
         try:
@@ -242,8 +343,13 @@ def suite_table(model, **options):
             continue
         lobe = np.abs(b - f).sum(axis=(1, 2)) / np.abs(f).sum(axis=(1, 2))
         a_m = stack.albedo(wi[:, 0, :], model, **options)[:, 1]
-        out.append(f"| {name} | " + " / ".join(f"{x:.3f}" for x in lobe) + " | "
-                   + " / ".join(f"{x:+.3f}" for x in a_m - reference_albedo(name)) + " |")
+        out.append(
+            f"| {name} | "
+            + " / ".join(f"{x:.3f}" for x in lobe)
+            + " | "
+            + " / ".join(f"{x:+.3f}" for x in a_m - reference_albedo(name))
+            + " |"
+        )
     return out
 
 
@@ -265,91 +371,133 @@ def variant_table(model, variants, names, thetas=4):
 def jacobian_rows():
     """Exact vs first-order Jacobians at the lobe mean and one roughness off it."""
     thetas = np.radians([0.0, 30.0, 60.0, 80.0, 87.0])
-    out = ["", "### Exact Jacobians in the covariance transport", "",
-           "Belcour's lobes are centred on the mirror direction, so the covariance transport evaluates the Jacobians "
-           "at h = n. Max relative difference |J_exact − J_first| / |J_first| (Frobenius) at the mean (xh = yh = 0) "
-           "and at one roughness off it in the plane of incidence (xh = α = 0.3), reflection and refraction "
-           "(η = 1.5):", "",
-           "| θi | J_r at the mean | J_t at the mean | J_r at xh = 0.3 | J_t at xh = 0.3 |", "|---:|---:|---:|---:|---:|"]
+    out = [
+        "",
+        "### Exact Jacobians in the covariance transport",
+        "",
+        "Belcour's lobes are centred on the mirror direction, so the covariance transport evaluates the Jacobians "
+        "at h = n. Max relative difference |J_exact − J_first| / |J_first| (Frobenius) at the mean (xh = yh = 0) "
+        "and at one roughness off it in the plane of incidence (xh = α = 0.3), reflection and refraction "
+        "(η = 1.5):",
+        "",
+        "| θi | J_r at the mean | J_t at the mean | J_r at xh = 0.3 | J_t at xh = 0.3 |",
+        "|---:|---:|---:|---:|---:|",
+    ]
     rel = lambda a, b: float(np.max(np.linalg.norm(a - b, axis=(-2, -1)) / np.linalg.norm(b, axis=(-2, -1))))  # noqa
     for t in thetas:
         row = []
         for xh in (0.0, 0.3):
             row.append(rel(lamina.optics.jacobian_reflect(t, xh), lamina.optics.jacobian_reflect(t, exact=False)))
-            row.append(rel(lamina.optics.jacobian_refract(t, 1.5, xh),
-                           lamina.optics.jacobian_refract(t, 1.5, exact=False)))
+            row.append(
+                rel(lamina.optics.jacobian_refract(t, 1.5, xh), lamina.optics.jacobian_refract(t, 1.5, exact=False))
+            )
         out.append(f"| {np.degrees(t):.0f}° | " + " | ".join(f"{x:.1e}" for x in row) + " |")
-    out += ["", "At the lobe mean the exact Jacobians are the first-order ones to rounding, multiples of I: "
-            "J_r = 2 cos θi I and J_t = ((cos θi − η cos θt)/η) I. The transmission roughness scale built from them, "
-            "s = |J_t(θi)| / |J_r(θt)| (how far the transmitted mean moves per unit of facet slope, over how far the "
-            "reflection at the next interface moves it), is the paper's |η cos θt − cos θi| / (2η cos θt) (tested to "
-            "1e-14: jacobian_ratio_at_the_mean_is_belcours_transmission_scale); the reference code evaluates it at "
-            "normal incidence (cosines frozen to 1). The up-going factor j12 = η cos θt / cos θi is already the exact "
-            "ratio at the mean. So the exact-Jacobian transport at the lobe mean is the option `cosines='real'` "
-            "(src/models/belcour.rs computes s from src/optics/jacobian.rs). Whether it helps at grazing angles, lobe "
-            "error against the reference:", ""]
+    out += [
+        "",
+        "At the lobe mean the exact Jacobians are the first-order ones to rounding, multiples of I: "
+        "J_r = 2 cos θi I and J_t = ((cos θi − η cos θt)/η) I. The transmission roughness scale built from them, "
+        "s = |J_t(θi)| / |J_r(θt)| (how far the transmitted mean moves per unit of facet slope, over how far the "
+        "reflection at the next interface moves it), is the paper's |η cos θt − cos θi| / (2η cos θt) (tested to "
+        "1e-14: jacobian_ratio_at_the_mean_is_belcours_transmission_scale); the reference code evaluates it at "
+        "normal incidence (cosines frozen to 1). The up-going factor j12 = η cos θt / cos θi is already the exact "
+        "ratio at the mean. So the exact-Jacobian transport at the lobe mean is the option `cosines='real'` "
+        "(src/models/belcour.rs computes s from src/optics/jacobian.rs). Whether it helps at grazing angles, lobe "
+        "error against the reference:",
+        "",
+    ]
     names = list(lamina.materials.SUITE)
-    out += ["| material | 80°, J at normal incidence (default) | 80°, exact J at the mean | 87°, J at normal incidence "
-            "(default) | 87°, exact J at the mean |", "|---|---:|---:|---:|---:|"]
+    out += [
+        "| material | 80°, J at normal incidence (default) | 80°, exact J at the mean | 87°, J at normal incidence "
+        "(default) | 87°, exact J at the mean |",
+        "|---|---:|---:|---:|---:|",
+    ]
     from lamina.reference import suite_reference
 
     means = []
     for name in names:
         wi, wo, f, _ = suite_reference(name, samples=20_000)
         stack = lamina.materials.suite(name)
-        err = [np.abs(stack.eval(wi, wo, "belcour", **kw) - f).sum(axis=(1, 2)) / np.abs(f).sum(axis=(1, 2))
-               for kw in ({}, {"cosines": "real"})]
+        err = [
+            np.abs(stack.eval(wi, wo, "belcour", **kw) - f).sum(axis=(1, 2)) / np.abs(f).sum(axis=(1, 2))
+            for kw in ({}, {"cosines": "real"})
+        ]
         row = [err[0][3], err[1][3], err[0][4], err[1][4]]
         means.append(row)
         out.append(f"| {name} | " + " | ".join(f"{x:.3f}" for x in row) + " |")
     out.append("| mean | " + " | ".join(f"{x:.3f}" for x in np.mean(means, axis=0)) + " |")
-    out += ["", "Off the mean the exact Jacobians are no longer multiples of I (the last two columns of the first "
-            "table): their effect spreads over the lobe, which a transport of the mean and covariance alone does not "
-            "represent."]
+    out += [
+        "",
+        "Off the mean the exact Jacobians are no longer multiples of I (the last two columns of the first "
+        "table): their effect spreads over the lobe, which a transport of the mean and covariance alone does not "
+        "represent.",
+    ]
     return out
 
 
 def belcour_section():
     """Belcour 2018 (with Yamaguchi 2019's covariances for the anisotropic material) against the reference."""
-    out = ["", "## Belcour 2018 / Yamaguchi 2019 against the reference", "",
-           "Suite grid (5 θi x 30 outgoing directions, `lamina.reference.suite_directions`), reference with 20k paths "
-           "per direction (NEE f; its standard error is included in these numbers). Lobe error: relative L1 error of f "
-           "over the outgoing grid. Albedo error: model minus brute-force reference (green channel, 200k paths), "
-           "specular delta reflection of smooth tops excluded from both.", ""]
+    out = [
+        "",
+        "## Belcour 2018 / Yamaguchi 2019 against the reference",
+        "",
+        "Suite grid (5 θi x 30 outgoing directions, `lamina.reference.suite_directions`), reference with 20k paths "
+        "per direction (NEE f; its standard error is included in these numbers). Lobe error: relative L1 error of f "
+        "over the outgoing grid. Albedo error: model minus brute-force reference (green channel, 200k paths), "
+        "specular delta reflection of smooth tops excluded from both.",
+        "",
+    ]
     out += suite_table("belcour")
     stack = lamina.materials.suite("gold-clearcoat")
     rows = []
     for t in (60, 80, 85, 88):
         wi = direction(t)
         delta = float(lamina.optics.fresnel_dielectric(wi[2], 1.5))
-        rows.append(f"{t}°: {stack.albedo(wi, 'belcour')[1] + delta:.3f} (symmetric "
-                    f"{stack.albedo(wi, 'belcour', symmetric=True)[1] + delta:.3f})")
-    out += ["", "Energy: the statistics follow the viewing direction, so the model conserves energy for a fixed view "
-            "(tested: ∫ f cos θi dωi + delta ≤ 1 on random stacks), but its light albedo ∫ f cos θo dωo (+ the delta "
-            "reflection of the smooth top) exceeds 1 at grazing incidence — gold-clearcoat, green: " + "; ".join(rows)
-            + ". The symmetric variant is reciprocal and also exceeds 1 there."]
-    variants = {"reference code (default)": {}, "real cosines in s (paper)": {"cosines": "real"},
-                "J21 in the variance terms (paper)": {"jacobian": "j21"},
-                "exact Fresnel at the mean cosine": {"energy": "fresnel"}, "symmetric (reciprocal)": {"symmetric": True},
-                "TIR step, reference table E[1 − F] (Fresnel twice)": {"tir": "transmittance"},
-                "TIR step, TIR fraction only": {"tir": "fraction"}}
+        rows.append(
+            f"{t}°: {stack.albedo(wi, 'belcour')[1] + delta:.3f} (symmetric "
+            f"{stack.albedo(wi, 'belcour', symmetric=True)[1] + delta:.3f})"
+        )
+    out += [
+        "",
+        "Energy: the statistics follow the viewing direction, so the model conserves energy for a fixed view "
+        "(tested: ∫ f cos θi dωi + delta ≤ 1 on random stacks), but its light albedo ∫ f cos θo dωo (+ the delta "
+        "reflection of the smooth top) exceeds 1 at grazing incidence — gold-clearcoat, green: "
+        + "; ".join(rows)
+        + ". The symmetric variant is reciprocal and also exceeds 1 there.",
+    ]
+    variants = {
+        "reference code (default)": {},
+        "real cosines in s (paper)": {"cosines": "real"},
+        "J21 in the variance terms (paper)": {"jacobian": "j21"},
+        "exact Fresnel at the mean cosine": {"energy": "fresnel"},
+        "symmetric (reciprocal)": {"symmetric": True},
+        "TIR step, reference table E[1 − F] (Fresnel twice)": {"tir": "transmittance"},
+        "TIR step, TIR fraction only": {"tir": "fraction"},
+    }
     names = list(lamina.materials.SUITE)
-    out += ["", "### Open questions: paper vs reference code, measured", "",
-            "Lobe error (as above) averaged over θi = 0°, 30°, 60°, 80°. For each open question (cosines, jacobian, "
-            "energy, tir) the default is the choice with the lowest mean; the symmetric variant, lower still, is an "
-            "option of another kind (it changes what the statistics depend on, for reciprocity). TIR step "
-            "(option `tir`): the reference code's table holds a rough interface's mean transmittance E[1 − F], which "
-            "for a smooth interface is the Fresnel transmission that Ti0 already carries (tested: "
-            "test_reference_tir_table_repeats_the_fresnel_factor), so that step applies Fresnel twice; "
-            "`tir='fraction'` moves only the totally reflected fraction of the visible normals (lamina's table, "
-            "src/tables/steinberg.rs) from Ti0 into Ri0.", ""]
+    out += [
+        "",
+        "### Open questions: paper vs reference code, measured",
+        "",
+        "Lobe error (as above) averaged over θi = 0°, 30°, 60°, 80°. For each open question (cosines, jacobian, "
+        "energy, tir) the default is the choice with the lowest mean; the symmetric variant, lower still, is an "
+        "option of another kind (it changes what the statistics depend on, for reciprocity). TIR step "
+        "(option `tir`): the reference code's table holds a rough interface's mean transmittance E[1 − F], which "
+        "for a smooth interface is the Fresnel transmission that Ti0 already carries (tested: "
+        "test_reference_tir_table_repeats_the_fresnel_factor), so that step applies Fresnel twice; "
+        "`tir='fraction'` moves only the totally reflected fraction of the visible normals (lamina's table, "
+        "src/tables/steinberg.rs) from Ti0 into Ri0.",
+        "",
+    ]
     out += variant_table("belcour", variants, names)
     out += jacobian_rows()
-    out += ["", "Reading: the model is exact for a smooth coat over Lambert and close for thin absorbing varnish; it "
-            "degrades towards grazing angles (not because of the frozen cosines: the exact Jacobians at the mean do no "
-            "better, table above), for rough coats (Belcour's energies conserve R + T = 1 at each interface while "
-            "single-scattering microfacets lose energy: frosted metal), and fails for optically thick scattering slabs "
-            "(its medium operator is forward single scattering)."]
+    out += [
+        "",
+        "Reading: the model is exact for a smooth coat over Lambert and close for thin absorbing varnish; it "
+        "degrades towards grazing angles (not because of the frozen cosines: the exact Jacobians at the mean do no "
+        "better, table above), for rough coats (Belcour's energies conserve R + T = 1 at each interface while "
+        "single-scattering microfacets lose energy: frosted metal), and fails for optically thick scattering slabs "
+        "(its medium operator is forward single scattering).",
+    ]
     return out
 
 
@@ -358,85 +506,153 @@ def single_pass_section():
     sys.path.insert(0, str(ROOT / "tests"))
     from test_single_pass import fit_error, precomputed_error
 
-    out = ["", "## Single-pass models against the reference", "",
-           "Same grid, reference and error measures as for Belcour above. Defaults: both models with the radiance "
-           "compression 1/η² through each dielectric interface (`eta2`, lamina's addition: neither publication has "
-           "it) and Elek's roughness clamp m₂ ≥ m₁ (`clamp_roughness`), chosen by the variant tables below.", "",
-           "### Steinberg (tabulated LUT, GGX, height-correlated Smith)", ""]
+    out = [
+        "",
+        "## Single-pass models against the reference",
+        "",
+        "Same grid, reference and error measures as for Belcour above. Defaults: both models with the radiance "
+        "compression 1/η² through each dielectric interface (`eta2`, lamina's addition: neither publication has "
+        "it) and Elek's roughness clamp m₂ ≥ m₁ (`clamp_roughness`), chosen by the variant tables below.",
+        "",
+        "### Steinberg (tabulated LUT, GGX, height-correlated Smith)",
+        "",
+    ]
     out += suite_table("steinberg")
-    out += ["", "### Weidlich–Wilkie / Elek 2010 (Beckmann D, V-cavity G, exact Fresnel)", "",
-            "The reference's microsurface is GGX with Smith masking, so part of this error is the change of "
-            "microfacet model; the GGX row of the variant table isolates the layering.", ""]
+    out += [
+        "",
+        "### Weidlich–Wilkie / Elek 2010 (Beckmann D, V-cavity G, exact Fresnel)",
+        "",
+        "The reference's microsurface is GGX with Smith masking, so part of this error is the change of "
+        "microfacet model; the GGX row of the variant table isolates the layering.",
+        "",
+    ]
     out += suite_table("weidlich_wilkie")
     names = list(lamina.materials.SUITE)
-    out += ["", "### Options, measured", "",
-            "Lobe error averaged over θi = 0°, 30°, 60°, 80°.", "", "Steinberg:", ""]
-    out += variant_table("steinberg", {
-        "default (tabulated, eta2, clamp)": {}, "fitted LUT (the article's closed forms)": {"lut": "fitted"},
-        "without 1/η² (as published)": {"eta2": False}, "without the roughness clamp (as published)":
-        {"clamp_roughness": False}}, names)
+    out += ["", "### Options, measured", "", "Lobe error averaged over θi = 0°, 30°, 60°, 80°.", "", "Steinberg:", ""]
+    out += variant_table(
+        "steinberg",
+        {
+            "default (tabulated, eta2, clamp)": {},
+            "fitted LUT (the article's closed forms)": {"lut": "fitted"},
+            "without 1/η² (as published)": {"eta2": False},
+            "without the roughness clamp (as published)": {"clamp_roughness": False},
+        },
+        names,
+    )
     out += ["", "Weidlich–Wilkie / Elek:", ""]
-    out += variant_table("weidlich_wilkie", {
-        "default (Beckmann, V-cavity, exact Fresnel, eta2, clamp)": {},
-        "GGX + height-correlated Smith (the reference's microsurface)": {"distribution": "ggx",
-                                                                         "g2": "height_correlated"},
-        "Lazányi–Szirmay-Kalos Fresnel": {"fresnel": "lazanyi"}, "Elek's precomputed tables": {"precomputed": True},
-        "without 1/η² (as published)": {"eta2": False}, "without the roughness clamp": {"clamp_roughness": False}},
-        names)
+    out += variant_table(
+        "weidlich_wilkie",
+        {
+            "default (Beckmann, V-cavity, exact Fresnel, eta2, clamp)": {},
+            "GGX + height-correlated Smith (the reference's microsurface)": {
+                "distribution": "ggx",
+                "g2": "height_correlated",
+            },
+            "Lazányi–Szirmay-Kalos Fresnel": {"fresnel": "lazanyi"},
+            "Elek's precomputed tables": {"precomputed": True},
+            "without 1/η² (as published)": {"eta2": False},
+            "without the roughness clamp": {"clamp_roughness": False},
+        },
+        names,
+    )
     err = fit_error()
-    out += ["", "### Steinberg's fitted LUT against the tabulated integrals", "",
-            "|fitted − tabulated| over every table node (64 μ x 32 α x 48 η): t the mean transmission, s the sine of "
-            "the mean refracted direction. Under total internal reflection (η < 1) the erf and exp2 forms cannot "
-            "follow the kink at the critical angle.", "",
-            "| quantity | max, η ≥ 1 | RMS, η ≥ 1 | max, η < 1 | RMS, η < 1 |", "|---|---:|---:|---:|---:|"]
+    out += [
+        "",
+        "### Steinberg's fitted LUT against the tabulated integrals",
+        "",
+        "|fitted − tabulated| over every table node (64 μ x 32 α x 48 η): t the mean transmission, s the sine of "
+        "the mean refracted direction. Under total internal reflection (η < 1) the erf and exp2 forms cannot "
+        "follow the kink at the critical angle.",
+        "",
+        "| quantity | max, η ≥ 1 | RMS, η ≥ 1 | max, η < 1 | RMS, η < 1 |",
+        "|---|---:|---:|---:|---:|",
+    ]
     for q in ("t", "s"):
-        out.append(f"| {q} | {err[f'{q}_max η≥1']:.4f} | {err[f'{q}_rms η≥1']:.4f} | {err[f'{q}_max η<1']:.4f} | "
-                   f"{err[f'{q}_rms η<1']:.4f} |")
-    out += ["", "### Elek's precomputed tables against the full evaluation", "",
-            "Relative L1 difference of f over 20k random direction pairs (seed 0), roughness clamp off. Elek 2010 "
-            "reports < 6%.", "", "| stack | difference |", "|---|---:|"]
+        out.append(
+            f"| {q} | {err[f'{q}_max η≥1']:.4f} | {err[f'{q}_rms η≥1']:.4f} | {err[f'{q}_max η<1']:.4f} | "
+            f"{err[f'{q}_rms η<1']:.4f} |"
+        )
+    out += [
+        "",
+        "### Elek's precomputed tables against the full evaluation",
+        "",
+        "Relative L1 difference of f over 20k random direction pairs (seed 0), roughness clamp off. Elek 2010 "
+        "reports < 6%.",
+        "",
+        "| stack | difference |",
+        "|---|---:|",
+    ]
     for name in lamina.materials.SUITE:
         out.append(f"| {name} | {precomputed_error(lamina.materials.suite(name), np.random.default_rng(0)):.2e} |")
     polished = lamina.Stack([lamina.Dielectric(1.5), lamina.materials.metal("Al", 0.02)])
-    out.append(f"| smooth coat over polished aluminium (α = 0.02) | "
-               f"{precomputed_error(polished, np.random.default_rng(0)):.2e} |")
-    out += ["", "Reading: with 1/η² both single-pass models reach Belcour's accuracy on coats over metals and "
-            "absorbing slabs at a fraction of its cost; without it they overestimate everything beneath a coat by up "
-            "to η². Without the roughness clamp a rough coat over a polished metal shows the metal's sharp lobe "
-            "unblurred (frosted-metal). Neither models the inter-reflections between layers (varnished-diffuse "
-            "comes out too dark) nor multiple scattering in a slab (scattering-slab). Weidlich–Wilkie's "
-            "V-cavity lobes deviate most at grazing angles."]
+    out.append(
+        f"| smooth coat over polished aluminium (α = 0.02) | "
+        f"{precomputed_error(polished, np.random.default_rng(0)):.2e} |"
+    )
+    out += [
+        "",
+        "Reading: with 1/η² both single-pass models reach Belcour's accuracy on coats over metals and "
+        "absorbing slabs at a fraction of its cost; without it they overestimate everything beneath a coat by up "
+        "to η². Without the roughness clamp a rough coat over a polished metal shows the metal's sharp lobe "
+        "unblurred (frosted-metal). Neither models the inter-reflections between layers (varnished-diffuse "
+        "comes out too dark) nor multiple scattering in a slab (scattering-slab). Weidlich–Wilkie's "
+        "V-cavity lobes deviate most at grazing angles.",
+    ]
     return out
 
 
 def main():
     rng = np.random.default_rng(7)
-    out = ["# Validation", "", "Generated by `scripts/validation_report.py` (`make validation`); do not edit by hand.",
-           "The same comparisons are asserted by `make test` (tests/), with the tolerances listed here.", "",
-           f"## Single interfaces against Mitsuba {mi.__version__} ({MI_RGB}, separable Smith, ext_ior = 1)", "",
-           "Relative error |lamina − Mitsuba| / |Mitsuba| over random direction pairs concentrated on the lobe "
-           "(values below 1e-6 of the peak compared absolutely).", "",
-           "| comparison | pairs | max rel. error | median rel. error | asserted tolerance |", "|---|---:|---:|---:|---|"]
+    out = [
+        "# Validation",
+        "",
+        "Generated by `scripts/validation_report.py` (`make validation`); do not edit by hand.",
+        "The same comparisons are asserted by `make test` (tests/), with the tolerances listed here.",
+        "",
+        f"## Single interfaces against Mitsuba {mi.__version__} ({MI_RGB}, separable Smith, ext_ior = 1)",
+        "",
+        "Relative error |lamina − Mitsuba| / |Mitsuba| over random direction pairs concentrated on the lobe "
+        "(values below 1e-6 of the peak compared absolutely).",
+        "",
+        "| comparison | pairs | max rel. error | median rel. error | asserted tolerance |",
+        "|---|---:|---:|---:|---|",
+    ]
     for name, n, mx, med, tol in mitsuba_rows(rng):
         out.append(f"| {name} | {n} | {mx:.1e} | {med:.1e} | {tol} |")
-    out += ["", "## Hemispherical Fresnel reflectance F̄_int (plastic's only formula difference)", "",
-            "lamina integrates F̄_int = 2∫F(μ, 1/η) μ dμ exactly (Gauss–Legendre with the energy-balance identity); "
-            "Mitsuba uses a polynomial fit.", "",
-            "| η | lamina (exact) | Mitsuba fit | difference |", "|---:|---:|---:|---:|"]
+    out += [
+        "",
+        "## Hemispherical Fresnel reflectance F̄_int (plastic's only formula difference)",
+        "",
+        "lamina integrates F̄_int = 2∫F(μ, 1/η) μ dμ exactly (Gauss–Legendre with the energy-balance identity); "
+        "Mitsuba uses a polynomial fit.",
+        "",
+        "| η | lamina (exact) | Mitsuba fit | difference |",
+        "|---:|---:|---:|---:|",
+    ]
     for eta, a, b, d in fdr_rows():
         out.append(f"| {eta} | {a:.6f} | {b:.6f} | {d:+.1e} |")
-    out += ["", "## Spectral → CIE XYZ / linear sRGB against colour-science "
-            f"{colour.__version__} (D65, 1 nm, normal-incidence reflectance of the shipped metals)", "",
-            "| metal | XYZ (lamina) | max abs. XYZ diff. | linear sRGB (lamina) | max abs. sRGB diff. |",
-            "|---|---|---:|---|---:|"]
+    out += [
+        "",
+        "## Spectral → CIE XYZ / linear sRGB against colour-science "
+        f"{colour.__version__} (D65, 1 nm, normal-incidence reflectance of the shipped metals)",
+        "",
+        "| metal | XYZ (lamina) | max abs. XYZ diff. | linear sRGB (lamina) | max abs. sRGB diff. |",
+        "|---|---|---:|---|---:|",
+    ]
     for metal, xyz, dx, srgb, ds in colour_rows():
         out.append(f"| {metal} | {np.round(xyz, 4).tolist()} | {dx:.1e} | {np.round(srgb, 4).tolist()} | {ds:.1e} |")
     for dist in ("ggx", "beckmann"):
         alphas, thetas, t = energy_table(rng, dist)
-        out += ["", f"## Single-scattering albedo of a white {dist.upper()} mirror (energy kept by one microfacet bounce)",
-                "", "E[G2/G1] under visible-normal sampling, 200k samples each (standard error < 1e-3): 1 − value is "
-                "the energy that single-scattering microfacet models lose (height-correlated Smith).", "",
-                "| alpha \\ θi | " + " | ".join(f"{x}°" for x in thetas) + " |", "|---:|" + "---:|" * len(thetas)]
+        out += [
+            "",
+            f"## Single-scattering albedo of a white {dist.upper()} mirror (energy kept by one microfacet bounce)",
+            "",
+            "E[G2/G1] under visible-normal sampling, 200k samples each (standard error < 1e-3): 1 − value is "
+            "the energy that single-scattering microfacet models lose (height-correlated Smith).",
+            "",
+            "| alpha \\ θi | " + " | ".join(f"{x}°" for x in thetas) + " |",
+            "|---:|" + "---:|" * len(thetas),
+        ]
         for a, row in zip(alphas, t):
             out.append(f"| {a} | " + " | ".join(f"{v:.4f}" for v in row) + " |")
     out += reference_section()

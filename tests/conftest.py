@@ -11,7 +11,6 @@ import os
 
 import numpy as np
 import pytest
-
 from libllvm import find as find_libllvm
 
 if not os.environ.get("DRJIT_LIBLLVM_PATH"):
@@ -36,7 +35,8 @@ MI_RGB = _pick_rgb_variant()
 
 def pytest_report_header(config):
     note = "" if MI_RGB.startswith("llvm") else " (no libLLVM >= 16 found: Mitsuba checks run on scalar_rgb)"
-    return f"mitsuba {mi.__version__}: RGB comparisons on {MI_RGB}{note}; DRJIT_LIBLLVM_PATH={os.environ.get('DRJIT_LIBLLVM_PATH')}"
+    path = os.environ.get("DRJIT_LIBLLVM_PATH")
+    return f"mitsuba {mi.__version__}: RGB comparisons on {MI_RGB}{note}; DRJIT_LIBLLVM_PATH={path}"
 
 
 def unit(v: np.ndarray) -> np.ndarray:

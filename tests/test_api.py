@@ -6,10 +6,9 @@ import subprocess
 import sys
 import threading
 
+import lamina
 import numpy as np
 import pytest
-
-import lamina
 from conftest import random_hemisphere
 
 
@@ -40,7 +39,9 @@ def test_dtypes_and_strides(gold, rng):
     assert ref.dtype == np.float64
     f32 = gold.eval(wi.astype(np.float32), wo.astype(np.float32))
     assert f32.dtype == np.float32
-    np.testing.assert_allclose(f32, gold.eval(wi.astype(np.float32).astype(np.float64), wo.astype(np.float32).astype(np.float64)), rtol=1e-6)
+    np.testing.assert_allclose(
+        f32, gold.eval(wi.astype(np.float32).astype(np.float64), wo.astype(np.float32).astype(np.float64)), rtol=1e-6
+    )
     assert gold.eval(wi.astype(np.float32), wo).dtype == np.float64
     # Non-contiguous views: every other row, Fortran order, a transposed (3, n) array viewed as (n, 3).
     big = np.empty((128, 3))
@@ -73,7 +74,10 @@ def test_below_horizon_is_zero(gold):
         (lambda: lamina.Stack([lamina.Conductor(0.2, 3.0, roughness=(0.1, -0.1))]), r"roughness must be in \[0, 1\]"),
         (lambda: lamina.Stack([lamina.Conductor(0.0, 3.0)]), r"ior must be in \(0, inf\)"),
         (lambda: lamina.Stack([lamina.Conductor(0.2, -1.0)]), r"k must be in \[0, inf\)"),
-        (lambda: lamina.Stack([lamina.Dielectric(-1.5), lamina.Diffuse(0.5)]), r"Dielectric: ior must be in \(0, inf\)"),
+        (
+            lambda: lamina.Stack([lamina.Dielectric(-1.5), lamina.Diffuse(0.5)]),
+            r"Dielectric: ior must be in \(0, inf\)",
+        ),
         (lambda: lamina.Stack([lamina.Dielectric(1.5, thickness=-1), lamina.Diffuse(0.5)]), "thickness"),
         (lambda: lamina.Stack([lamina.Dielectric(1.5, sigma_a=np.nan), lamina.Diffuse(0.5)]), "sigma_a"),
         (lambda: lamina.Stack([lamina.Dielectric(1.5, g=1.0), lamina.Diffuse(0.5)]), r"g must be in \(-1, 1\)"),
@@ -121,8 +125,12 @@ def test_bad_arrays(wi, wo, match):
 
 def test_bad_options():
     stack = lamina.Stack([lamina.Conductor(0.2, 3.0, 0.3)])
-    for kw, match in [({"model": "belcour2"}, "model must be one of"), ({"distribution": "phong"}, "distribution"),
-                      ({"g2": "smith"}, "g2"), ({"fresnel": "fast"}, "fresnel")]:
+    for kw, match in [
+        ({"model": "belcour2"}, "model must be one of"),
+        ({"distribution": "phong"}, "distribution"),
+        ({"g2": "smith"}, "g2"),
+        ({"fresnel": "fast"}, "fresnel"),
+    ]:
         with pytest.raises(ValueError, match=match):
             stack.eval([0, 0, 1.0], [0, 0, 1.0], **kw)
     with pytest.raises(ValueError, match="layered model"):
@@ -155,8 +163,12 @@ def test_concurrent_calls_from_threads(gold, rng):
 
 
 def test_cli_plot_writes_png(tmp_path):
-    res = subprocess.run([sys.executable, "-m", "lamina.cli", "plot", "--material", "copper", "--out", str(tmp_path)],
-                         capture_output=True, text=True, check=True)
+    res = subprocess.run(
+        [sys.executable, "-m", "lamina.cli", "plot", "--material", "copper", "--out", str(tmp_path)],
+        capture_output=True,
+        text=True,
+        check=True,
+    )
     png = tmp_path / "copper_microfacet_slices.png"
     assert png.exists() and png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n", res.stdout + res.stderr
     assert png.stat().st_size > 10_000
@@ -166,8 +178,10 @@ def test_prepared_models_are_reused_only_for_equal_arguments(rng):
     """lamina keeps the last 16 prepared models (Belcour's tables) keyed by model, stack and options: a stack that
     differs in its last digit, or other options, must not reuse them; one evicted and prepared again gives the same
     bits."""
+
     def stack(ior):
         return lamina.Stack([lamina.Dielectric(ior, 0.2), lamina.materials.metal("Cu", 0.35)])
+
     wi, wo = random_hemisphere(rng, 2000), random_hemisphere(rng, 2000)
     first = stack(1.5).eval(wi, wo, "belcour")
     assert not np.array_equal(stack(1.5 + 1e-12).eval(wi, wo, "belcour"), first)

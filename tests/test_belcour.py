@@ -3,13 +3,12 @@ against the Monte Carlo reference on the material suite (regression guards; the 
 
 from __future__ import annotations
 
+import lamina
 import numpy as np
 import pytest
+from conftest import random_hemisphere
 from hypothesis import given, settings
 from hypothesis import strategies as st
-
-import lamina
-from conftest import random_hemisphere
 
 
 def test_smooth_coat_over_lambert_reduces_to_the_closed_form(rng):
@@ -46,12 +45,19 @@ def test_single_interface_is_one_lobe_of_its_roughness():
 
 
 isotropic_stacks = st.builds(
-    lambda ior, a1, d, sa, base_k, a2, diffuse: lamina.Stack([
-        lamina.Dielectric(ior, a1, thickness=d, sigma_a=sa),
-        lamina.Diffuse(0.7) if diffuse else lamina.Conductor(0.3, base_k, a2),
-    ]),
-    st.floats(1.001, 2.5), st.floats(0.0, 1.0), st.floats(0.0, 20.0), st.floats(0.0, 5.0), st.floats(0.0, 6.0),
-    st.floats(0.0, 1.0), st.booleans(),
+    lambda ior, a1, d, sa, base_k, a2, diffuse: lamina.Stack(
+        [
+            lamina.Dielectric(ior, a1, thickness=d, sigma_a=sa),
+            lamina.Diffuse(0.7) if diffuse else lamina.Conductor(0.3, base_k, a2),
+        ]
+    ),
+    st.floats(1.001, 2.5),
+    st.floats(0.0, 1.0),
+    st.floats(0.0, 20.0),
+    st.floats(0.0, 5.0),
+    st.floats(0.0, 6.0),
+    st.floats(0.0, 1.0),
+    st.booleans(),
 )
 
 
@@ -98,12 +104,21 @@ def test_variant_options():
     stack = lamina.materials.suite("three-layer")
     wi, wo = np.array([0.3, 0.0, 0.95]), np.array([-0.2, 0.1, 0.97])
     base = stack.eval(wi, wo, "belcour")
-    for kw in ({"cosines": "real"}, {"jacobian": "j21"}, {"energy": "fresnel"}, {"tir": "transmittance"},
-               {"tir": "fraction"}):
+    for kw in (
+        {"cosines": "real"},
+        {"jacobian": "j21"},
+        {"energy": "fresnel"},
+        {"tir": "transmittance"},
+        {"tir": "fraction"},
+    ):
         f = stack.eval(wi, wo, "belcour", **kw)
         assert np.all(np.isfinite(f)) and not np.array_equal(f, base), kw
-    for kw, match in (({"cosines": "paper"}, "cosines"), ({"jacobian": "J"}, "jacobian"), ({"energy": "x"}, "energy"),
-                      ({"tir": "on"}, "tir")):
+    for kw, match in (
+        ({"cosines": "paper"}, "cosines"),
+        ({"jacobian": "J"}, "jacobian"),
+        ({"energy": "x"}, "energy"),
+        ({"tir": "on"}, "tir"),
+    ):
         with pytest.raises(ValueError, match=match):
             stack.eval(wi, wo, "belcour", **kw)
 
@@ -128,9 +143,16 @@ def aniso_pairs(rng, n):
 def test_isotropic_covariances_are_scalar_and_frame_free(rng):
     """Yamaguchi's covariance transport on an isotropic stack: every Σ = σI, lobes without orientation, and the
     tangent angles of the layers do not matter (the scalar model)."""
+
     def stack(angle):
-        return lamina.Stack([lamina.Dielectric(1.3, 0.1, angle=angle), lamina.Dielectric(1.6, 0.25, angle=2 * angle),
-                             lamina.materials.metal("Cu", 0.2, angle=-angle)])
+        return lamina.Stack(
+            [
+                lamina.Dielectric(1.3, 0.1, angle=angle),
+                lamina.Dielectric(1.6, 0.25, angle=2 * angle),
+                lamina.materials.metal("Cu", 0.2, angle=-angle),
+            ]
+        )
+
     wo = random_hemisphere(rng, 50)
     lobes = stack(0.0).lobes(wo)
     cov = lobes["covariance"]
@@ -138,8 +160,9 @@ def test_isotropic_covariances_are_scalar_and_frame_free(rng):
     assert np.all(lobes["angle"] == 0) and np.all(lobes["roughness"][..., 0] == lobes["roughness"][..., 1])
     wi = random_hemisphere(rng, 50)
     for tab in (True, False):
-        np.testing.assert_array_equal(stack(0.7).eval(wi, wo, "belcour", tabulated=tab),
-                                      stack(0.0).eval(wi, wo, "belcour", tabulated=tab))
+        np.testing.assert_array_equal(
+            stack(0.7).eval(wi, wo, "belcour", tabulated=tab), stack(0.0).eval(wi, wo, "belcour", tabulated=tab)
+        )
 
 
 def test_single_anisotropic_interface_is_one_lobe_of_its_roughness_and_frame(rng):
@@ -152,8 +175,11 @@ def test_single_anisotropic_interface_is_one_lobe_of_its_roughness_and_frame(rng
     f = stack.eval(wi, wo, "belcour", tabulated=False)
     h = wi + wo
     h /= np.linalg.norm(h, axis=-1, keepdims=True)
-    shape = (lamina.optics.ndf(h, (0.1, 0.4), 0.5) * lamina.optics.masking_shadowing(wi, wo, h, (0.1, 0.4), 0.5)
-             / (4 * wi[:, 2] * wo[:, 2]))
+    shape = (
+        lamina.optics.ndf(h, (0.1, 0.4), 0.5)
+        * lamina.optics.masking_shadowing(wi, wo, h, (0.1, 0.4), 0.5)
+        / (4 * wi[:, 2] * wo[:, 2])
+    )
     np.testing.assert_allclose(f, stack.lobes(wo)["energy"][:, 0] * shape[:, None], rtol=1e-9)
 
 
@@ -161,9 +187,15 @@ def test_single_anisotropic_interface_is_one_lobe_of_its_roughness_and_frame(rng
 def test_rotating_anisotropic_layers_and_directions_together_leaves_f_unchanged(tabulated, rng):
     """Exact for the direct loop; the tabulated form interpolates over the viewing azimuth on nodes fixed in the
     local frame (measured table-vs-loop difference below 0.6%): 1% there."""
+
     def stack(turn):
-        return lamina.Stack([lamina.Dielectric(1.5, (0.1, 0.4), angle=0.5 + turn),
-                             lamina.materials.metal("Al", (0.35, 0.08), angle=-0.4 + turn)])
+        return lamina.Stack(
+            [
+                lamina.Dielectric(1.5, (0.1, 0.4), angle=0.5 + turn),
+                lamina.materials.metal("Al", (0.35, 0.08), angle=-0.4 + turn),
+            ]
+        )
+
     wi, wo = aniso_pairs(rng, 300)
     c, s = np.cos(0.8), np.sin(0.8)
     rot = np.array([[c, -s, 0], [s, c, 0], [0, 0, 1.0]])
@@ -187,10 +219,17 @@ def test_anisotropic_table_matches_the_direct_loop(symmetric, rng):
 
 
 anisotropic_stacks = st.builds(
-    lambda ior, ax, ay, angle, bx, by, bangle, k: lamina.Stack([
-        lamina.Dielectric(ior, (ax, ay), angle=angle), lamina.Conductor(0.3, k, (bx, by), angle=bangle)]),
-    st.floats(1.001, 2.5), st.floats(0.0, 1.0), st.floats(0.0, 1.0), st.floats(-3.2, 3.2), st.floats(0.0, 1.0),
-    st.floats(0.0, 1.0), st.floats(-3.2, 3.2), st.floats(0.0, 6.0),
+    lambda ior, ax, ay, angle, bx, by, bangle, k: lamina.Stack(
+        [lamina.Dielectric(ior, (ax, ay), angle=angle), lamina.Conductor(0.3, k, (bx, by), angle=bangle)]
+    ),
+    st.floats(1.001, 2.5),
+    st.floats(0.0, 1.0),
+    st.floats(0.0, 1.0),
+    st.floats(-3.2, 3.2),
+    st.floats(0.0, 1.0),
+    st.floats(0.0, 1.0),
+    st.floats(-3.2, 3.2),
+    st.floats(0.0, 6.0),
 )
 
 
@@ -207,8 +246,14 @@ def test_anisotropic_finite_non_negative(stack, zi, zo, phi):
 # Measured with 20k reference paths per direction (seed 0) on the suite grid (5 θi x 30 wo): relative L1 error of
 # f over the outgoing grid, averaged over θi ∈ {0°, 30°, 60°}. Guards: measured + 0.05 (absolute).
 MEASURED_LOBE_ERROR = {
-    "gold-clearcoat": 0.194, "frosted-metal": 0.472, "rough-coat-rough-copper": 0.119, "varnished-diffuse": 0.004,
-    "thick-absorbing-slab": 0.129, "three-layer": 0.224, "scattering-slab": 0.922, "anisotropic-coat-metal": 0.228,
+    "gold-clearcoat": 0.194,
+    "frosted-metal": 0.472,
+    "rough-coat-rough-copper": 0.119,
+    "varnished-diffuse": 0.004,
+    "thick-absorbing-slab": 0.129,
+    "three-layer": 0.224,
+    "scattering-slab": 0.922,
+    "anisotropic-coat-metal": 0.228,
 }
 
 

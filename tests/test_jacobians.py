@@ -3,10 +3,9 @@ themselves (written here independently with NumPy). Step 1e-6: truncation ~1e-12
 
 from __future__ import annotations
 
+import lamina
 import numpy as np
 import pytest
-
-import lamina
 
 
 def reflect_map(theta_i, xh, yh):
@@ -47,8 +46,9 @@ def test_first_order_forms_and_shapes():
     t = np.linspace(0, 1.4, 8)
     np.testing.assert_allclose(lamina.jacobian_reflect(t, exact=False), 2 * np.cos(t)[:, None, None] * np.eye(2))
     ct = np.sqrt(1 - np.sin(t) ** 2 / 1.5**2)
-    np.testing.assert_allclose(lamina.jacobian_refract(t, 1.5, exact=False),
-                               ((np.cos(t) - 1.5 * ct) / 1.5)[:, None, None] * np.eye(2))
+    np.testing.assert_allclose(
+        lamina.jacobian_refract(t, 1.5, exact=False), ((np.cos(t) - 1.5 * ct) / 1.5)[:, None, None] * np.eye(2)
+    )
     np.testing.assert_allclose(lamina.jacobian_refract(t, 1.5), lamina.jacobian_refract(t, 1.5, exact=False))
     assert lamina.jacobian_reflect(t[:, None], np.zeros(3)).shape == (8, 3, 2, 2)
 

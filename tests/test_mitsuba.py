@@ -7,13 +7,11 @@ error < 0.35%), so Beckmann values, which contain two G1 factors, are compared t
 
 from __future__ import annotations
 
+import lamina
+import mitsuba as mi
 import numpy as np
 import pytest
-
-import lamina
 from conftest import mitsuba_f, random_hemisphere, unit
-
-import mitsuba as mi
 
 RTOL_SAME_FORMULA = 1e-4
 RTOL_BECKMANN_G1 = 7e-3
@@ -63,8 +61,19 @@ def test_roughconductor(rng, distribution, roughness, metal):
     ax, ay = lamina.layers._roughness(roughness)
     wi, wo = near_lobe_pairs(rng, 400, 2 * max(ax, ay))
     ours = lamina.optics.rough_conductor(wi, wo, eta, k, roughness, distribution=distribution, g2="separable")
-    ref = mitsuba_f({"type": "roughconductor", "distribution": distribution, "alpha_u": ax, "alpha_v": ay,
-                     "eta": rgb(eta), "k": rgb(k), "sample_visible": True}, wi, wo)
+    ref = mitsuba_f(
+        {
+            "type": "roughconductor",
+            "distribution": distribution,
+            "alpha_u": ax,
+            "alpha_v": ay,
+            "eta": rgb(eta),
+            "k": rgb(k),
+            "sample_visible": True,
+        },
+        wi,
+        wo,
+    )
     assert ours.shape == ref.shape == (len(wi), 3)
     assert_close(ours, ref, RTOL_SAME_FORMULA if distribution == "ggx" else RTOL_BECKMANN_G1)
 
@@ -76,8 +85,18 @@ def test_roughconductor_rotated_tangent_frame(rng, angle):
     wi, wo = near_lobe_pairs(rng, 300, 0.6)
     stack = lamina.Stack([lamina.Conductor(eta, k, roughness=(0.1, 0.45), angle=angle)])
     ours = stack.eval(wi, wo, g2="separable")
-    ref = mitsuba_f({"type": "roughconductor", "distribution": "ggx", "alpha_u": 0.1, "alpha_v": 0.45,
-                     "eta": rgb(eta), "k": rgb(k)}, rotate_z(wi, -angle), rotate_z(wo, -angle))
+    ref = mitsuba_f(
+        {
+            "type": "roughconductor",
+            "distribution": "ggx",
+            "alpha_u": 0.1,
+            "alpha_v": 0.45,
+            "eta": rgb(eta),
+            "k": rgb(k),
+        },
+        rotate_z(wi, -angle),
+        rotate_z(wo, -angle),
+    )
     assert_close(ours, ref, RTOL_SAME_FORMULA)
 
 
@@ -93,7 +112,11 @@ def test_roughdielectric(rng, distribution, eta, alpha, case):
         wo = 2 * np.sum(wi * m, axis=-1, keepdims=True) * m - wi
     else:
         wo = refract(wi, m, eta if case == "transmit-from-outside" else 1 / eta)
-    keep = np.all(np.isfinite(wo), axis=-1) & (np.abs(wo[:, 2]) > 0.02) & (wo[:, 2] * (1 if case.startswith("reflect") else -1) > 0)
+    keep = (
+        np.all(np.isfinite(wo), axis=-1)
+        & (np.abs(wo[:, 2]) > 0.02)
+        & (wo[:, 2] * (1 if case.startswith("reflect") else -1) > 0)
+    )
     wi, wo = wi[keep], wo[keep]
     if case in ("reflect-inside", "transmit-from-inside"):
         wi, wo = -wi, -wo
@@ -113,8 +136,11 @@ def test_roughdielectric(rng, distribution, eta, alpha, case):
         ok = np.minimum(np.abs(np.sum(wi * h, -1)), np.abs(np.sum(wo * h, -1))) > 0.05
         wi, wo = wi[ok], wo[ok]
     ours = lamina.optics.rough_dielectric(wi, wo, [eta], alpha, distribution=distribution, g2="separable")[:, 0]
-    ref = mitsuba_f({"type": "roughdielectric", "distribution": distribution, "alpha": alpha,
-                     "int_ior": eta, "ext_ior": 1.0}, wi, wo)[:, 0]
+    ref = mitsuba_f(
+        {"type": "roughdielectric", "distribution": distribution, "alpha": alpha, "int_ior": eta, "ext_ior": 1.0},
+        wi,
+        wo,
+    )[:, 0]
     assert np.count_nonzero(ref) >= 150, "the sample must exercise the lobe"
     assert_close(ours, ref, RTOL_SAME_FORMULA if distribution == "ggx" else RTOL_BECKMANN_G1)
 
@@ -137,8 +163,11 @@ def test_plastic_nonlinear(rng, eta):
     albedo = np.array([0.9, 0.5, 0.1])
     wi, wo = random_hemisphere(rng, 300), random_hemisphere(rng, 300)
     ours = lamina.materials.plastic(albedo, ior=eta).eval(wi, wo)
-    ref = mitsuba_f({"type": "plastic", "int_ior": eta, "ext_ior": 1.0, "nonlinear": True,
-                     "diffuse_reflectance": rgb(albedo)}, wi, wo)
+    ref = mitsuba_f(
+        {"type": "plastic", "int_ior": eta, "ext_ior": 1.0, "nonlinear": True, "diffuse_reflectance": rgb(albedo)},
+        wi,
+        wo,
+    )
     fdr_ours = float(lamina.optics.fresnel_diffuse_reflectance(1 / eta))
     mi.set_variant("scalar_rgb")
     fdr_mitsuba = float(mi.fresnel_diffuse_reflectance(1 / eta))

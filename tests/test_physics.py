@@ -6,13 +6,11 @@ Monte Carlo tolerances are stated in standard errors (SE) of the estimate: 4 SE 
 
 from __future__ import annotations
 
+import lamina
 import numpy as np
-import pytest
+from conftest import random_hemisphere, unit
 from hypothesis import given, settings
 from hypothesis import strategies as st
-
-import lamina
-from conftest import random_hemisphere, unit
 from scipy import stats
 
 alphas = st.floats(0.05, 1.0)
@@ -30,15 +28,25 @@ def direction(theta_deg: float, phi: float) -> np.ndarray:
 
 
 layers = st.one_of(
-    st.builds(lambda a, ang, n, k: lamina.Conductor((n, n * 0.8, n * 1.2), (k, k, k * 0.5), a, ang),
-              anisotropic, angles, st.floats(0.05, 4.0), st.floats(0.0, 6.0)),
+    st.builds(
+        lambda a, ang, n, k: lamina.Conductor((n, n * 0.8, n * 1.2), (k, k, k * 0.5), a, ang),
+        anisotropic,
+        angles,
+        st.floats(0.05, 4.0),
+        st.floats(0.0, 6.0),
+    ),
     st.builds(lambda a, s: lamina.Diffuse(a, s), st.floats(0.0, 1.0), st.floats(0.0, 1.0)),
 )
 
 
 @settings(max_examples=60, deadline=None)
-@given(layers, st.lists(dirs, min_size=2, max_size=2), st.sampled_from(["ggx", "beckmann"]), g2_forms,
-       st.sampled_from(["exact", "schlick", "lazanyi"]))
+@given(
+    layers,
+    st.lists(dirs, min_size=2, max_size=2),
+    st.sampled_from(["ggx", "beckmann"]),
+    g2_forms,
+    st.sampled_from(["exact", "schlick", "lazanyi"]),
+)
 def test_single_interface_is_finite_non_negative_and_reciprocal(layer, ws, distribution, g2, fresnel):
     stack = lamina.Stack([layer])
     wi, wo = ws
@@ -93,8 +101,16 @@ def _vndf_estimate(wi, alpha, angle, distribution, n, seed):
 
 
 @settings(max_examples=25, deadline=None)
-@given(anisotropic, angles, thetas, distributions, g2_forms, st.floats(0.05, 4.0), st.floats(0.0, 8.0),
-       st.integers(0, 2**31))
+@given(
+    anisotropic,
+    angles,
+    thetas,
+    distributions,
+    g2_forms,
+    st.floats(0.05, 4.0),
+    st.floats(0.0, 8.0),
+    st.integers(0, 2**31),
+)
 def test_rough_conductor_albedo_at_most_one(alpha, angle, theta, distribution, g2, eta, k, seed):
     """Directional albedo ∫ f cos θo dωo <= 1, estimated by VNDF importance sampling (pdf(wo) = D_wi(m)/(4 wi·m));
     asserted within 4 SE. Any F <= 1 and G2 <= G1 keep a single-scattering microfacet BRDF below 1."""
@@ -111,8 +127,14 @@ def test_rough_conductor_albedo_at_most_one(alpha, angle, theta, distribution, g
 
 
 @settings(max_examples=25, deadline=None)
-@given(alphas, thetas, st.floats(0.4, 2.5).filter(lambda e: abs(e - 1) > 0.02), distributions, g2_forms,
-       st.integers(0, 2**31))
+@given(
+    alphas,
+    thetas,
+    st.floats(0.4, 2.5).filter(lambda e: abs(e - 1) > 0.02),
+    distributions,
+    g2_forms,
+    st.integers(0, 2**31),
+)
 def test_rough_dielectric_energy_at_most_one(alpha, theta, eta, distribution, g2, seed):
     """R + T = ∫ f(wi, wo) |cos θo| dωo <= 1 for one rough dielectric interface, by VNDF sampling of both lobes
     from the same normals; within 4 SE. (The radiance BTDF's η_o² factor cancels against the solid-angle

@@ -9,10 +9,9 @@ import os
 import subprocess
 import sys
 
+import lamina
 import numpy as np
 import pytest
-
-import lamina
 from scipy import stats
 
 
@@ -70,12 +69,20 @@ def test_absorbing_slab_under_smooth_coat_equals_closed_form():
         assert np.all(np.abs(ref - closed) <= 3 * se + 1e-8), f"θ={theta}: {ref} ± {se} vs {closed}"
 
 
-@pytest.mark.parametrize("layers", [
-    [lamina.Dielectric(1.5), lamina.Diffuse(1.0)],
-    [lamina.Dielectric(1.5, thickness=1.0, sigma_s=3.0, g=0.6), lamina.Dielectric(1.3, thickness=0.5, sigma_s=1.0, g=-0.3), lamina.Diffuse(1.0)],
-])
+@pytest.mark.parametrize(
+    "layers",
+    [
+        [lamina.Dielectric(1.5), lamina.Diffuse(1.0)],
+        [
+            lamina.Dielectric(1.5, thickness=1.0, sigma_s=3.0, g=0.6),
+            lamina.Dielectric(1.3, thickness=0.5, sigma_s=1.0, g=-0.3),
+            lamina.Diffuse(1.0),
+        ],
+    ],
+)
 def test_white_furnace(layers):
-    """Lossless smooth interfaces and scattering (non-absorbing) slabs over a white Lambertian base reflect all light."""
+    """Lossless smooth interfaces and scattering (non-absorbing) slabs over a white Lambertian base reflect all
+    light."""
     ref, se = lamina.Stack(layers).albedo(direction(35.0), "reference", samples=200_000, seed=4)
     assert np.all(np.abs(ref - 1) <= 3 * se + 1e-12), f"{ref} ± {se}"
 
@@ -119,11 +126,21 @@ def test_standard_error_shrinks_as_inverse_sqrt_n():
 
 
 def test_deterministic_and_independent_of_threads():
-    code = ("import lamina, numpy as np; s = lamina.Stack([lamina.Dielectric(1.5, 0.3, thickness=1, sigma_s=1.0), "
-            "lamina.Diffuse(0.7)]); print(repr(s.albedo(np.array([0.3, 0, 0.95]), 'reference', samples=300_000, "
-            "seed=11)[0].tolist()))")
-    runs = [subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True,
-                           env={**os.environ, "RAYON_NUM_THREADS": n}).stdout for n in ("1", "2")]
+    code = (
+        "import lamina, numpy as np; s = lamina.Stack([lamina.Dielectric(1.5, 0.3, thickness=1, sigma_s=1.0), "
+        "lamina.Diffuse(0.7)]); print(repr(s.albedo(np.array([0.3, 0, 0.95]), 'reference', samples=300_000, "
+        "seed=11)[0].tolist()))"
+    )
+    runs = [
+        subprocess.run(
+            [sys.executable, "-c", code],
+            capture_output=True,
+            text=True,
+            check=True,
+            env={**os.environ, "RAYON_NUM_THREADS": n},
+        ).stdout
+        for n in ("1", "2")
+    ]
     assert runs[0] == runs[1] and runs[0].strip()
     s = lamina.Stack([lamina.Conductor(0.2, 3.0, 0.3)])
     a = s.albedo(direction(20.0), "reference", samples=10_000, seed=3)
@@ -195,9 +212,17 @@ def test_reference_f_of_plastic_matches_closed_form_and_mitsuba():
     closed = stack.eval(wi, wo)
     assert np.all(np.abs(f - closed) <= 3 * se), np.max(np.abs(f - closed) / se)
     WI, WO = np.broadcast_arrays(wi, wo)
-    ref = mitsuba_f({"type": "plastic", "int_ior": 1.5, "ext_ior": 1.0, "nonlinear": True,
-                     "diffuse_reflectance": {"type": "rgb", "value": albedo.tolist()}},
-                    WI.reshape(-1, 3), WO.reshape(-1, 3)).reshape(f.shape)
+    ref = mitsuba_f(
+        {
+            "type": "plastic",
+            "int_ior": 1.5,
+            "ext_ior": 1.0,
+            "nonlinear": True,
+            "diffuse_reflectance": {"type": "rgb", "value": albedo.tolist()},
+        },
+        WI.reshape(-1, 3),
+        WO.reshape(-1, 3),
+    ).reshape(f.shape)
     assert np.all(np.abs(f - ref) <= 0.01 * ref)
 
 
@@ -214,14 +239,26 @@ def test_reference_f_against_mitsuba_roughplastic():
     for alpha in (0.1, 0.3, 0.5):
         stack = lamina.Stack([lamina.Dielectric(1.5, alpha), lamina.Diffuse(rho)])
         f, se = stack.reference(WI, WO, samples=100_000, g2="separable")
-        ref = mitsuba_f({"type": "roughplastic", "distribution": "ggx", "alpha": alpha, "int_ior": 1.5,
-                         "ext_ior": 1.0, "nonlinear": True,
-                         "diffuse_reflectance": {"type": "rgb", "value": rho.tolist()}}, WI, WO)
+        ref = mitsuba_f(
+            {
+                "type": "roughplastic",
+                "distribution": "ggx",
+                "alpha": alpha,
+                "int_ior": 1.5,
+                "ext_ior": 1.0,
+                "nonlinear": True,
+                "diffuse_reflectance": {"type": "rgb", "value": rho.tolist()},
+            },
+            WI,
+            WO,
+        )
         rel = np.abs(ref - f) / f
         assert np.median(rel) <= 0.005 and rel.max() <= 0.025, (alpha, np.median(rel), rel.max())
 
 
-@pytest.mark.parametrize("name", ["rough-coat-rough-copper", "anisotropic-coat-metal", "three-layer", "scattering-slab"])
+@pytest.mark.parametrize(
+    "name", ["rough-coat-rough-copper", "anisotropic-coat-metal", "three-layer", "scattering-slab"]
+)
 def test_reference_f_is_reciprocal(name):
     """f(wi, wo) = f(wo, wi) within 4 combined SE (4, not 3: 12 comparisons per material)."""
     stack = lamina.materials.suite(name)
@@ -266,7 +303,9 @@ def test_nee_agrees_with_brute_force_lobe(name):
     keep = brute > 0.02 * brute.max()
     z2 = ((nee - brute)[keep] / np.hypot(nee_se, brute_se)[keep]) ** 2
     p_value = stats.chi2.sf(z2.sum(), keep.sum())
-    assert p_value > 1e-4, f"chi2 {z2.sum():.1f} over {keep.sum()} bins (p = {p_value:.2g}), worst {np.sqrt(z2.max()):.1f} SE"
+    assert p_value > 1e-4, (
+        f"chi2 {z2.sum():.1f} over {keep.sum()} bins (p = {p_value:.2g}), worst {np.sqrt(z2.max()):.1f} SE"
+    )
 
 
 def test_reference_f_standard_error_shrinks_as_inverse_sqrt_n():
@@ -280,8 +319,9 @@ def test_eval_reference_and_cache(tmp_path, monkeypatch):
     assert "reference" in lamina.MODELS
     stack = lamina.materials.suite("gold-clearcoat")
     wi, wo = direction(30), direction(45, 2.0)
-    np.testing.assert_array_equal(stack.eval(wi, wo, model="reference", samples=5000, seed=3),
-                                  stack.reference(wi, wo, samples=5000, seed=3)[0])
+    np.testing.assert_array_equal(
+        stack.eval(wi, wo, model="reference", samples=5000, seed=3), stack.reference(wi, wo, samples=5000, seed=3)[0]
+    )
     monkeypatch.setenv("LAMINA_CACHE", str(tmp_path))
     from lamina.reference import cache_key, cached_reference
 
@@ -289,8 +329,13 @@ def test_eval_reference_and_cache(tmp_path, monkeypatch):
     assert len(list((tmp_path / "reference").glob("*.npz"))) == 1
     f2, s2 = cached_reference(stack, wi, wo, samples=3000)  # from disk
     np.testing.assert_array_equal(f1, f2)
-    keys = {cache_key(stack, wi, wo, 3000, 0), cache_key(stack, wi, wo, 3001, 0), cache_key(stack, wi, wo, 3000, 1),
-            cache_key(lamina.materials.suite("three-layer"), wi, wo, 3000, 0), cache_key(stack, wo, wi, 3000, 0)}
+    keys = {
+        cache_key(stack, wi, wo, 3000, 0),
+        cache_key(stack, wi, wo, 3001, 0),
+        cache_key(stack, wi, wo, 3000, 1),
+        cache_key(lamina.materials.suite("three-layer"), wi, wo, 3000, 0),
+        cache_key(stack, wo, wi, 3000, 0),
+    }
     assert len(keys) == 5
 
 
@@ -300,8 +345,10 @@ def test_ctrl_c_stops_a_long_run_cleanly():
     import signal
     import time
 
-    code = ("import numpy as np, lamina, sys; s = lamina.materials.suite('three-layer'); print('ready', flush=True); "
-            "s.reference(np.array([0.3, 0, 0.95]), np.array([[0.1, 0.2, 0.97]] * 8), samples=10**9, progress=False)")
+    code = (
+        "import numpy as np, lamina, sys; s = lamina.materials.suite('three-layer'); print('ready', flush=True); "
+        "s.reference(np.array([0.3, 0, 0.95]), np.array([[0.1, 0.2, 0.97]] * 8), samples=10**9, progress=False)"
+    )
     proc = subprocess.Popen([sys.executable, "-c", code], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     assert proc.stdout.readline().strip() == "ready"
     time.sleep(1.0)

@@ -5,13 +5,12 @@ reference's walk sampling against the exact conductor."""
 
 from __future__ import annotations
 
+import lamina
 import numpy as np
 import pytest
-from scipy import stats
-
-import lamina
 from lamina import Conductor, Dielectric, Diffuse, Stack
 from lamina.materials import metal, suite
+from scipy import stats
 
 N_COS, N_PHI, SUB = 10, 20, 12  # histogram bins in (cos θ, φ), and sub-bins per axis for the pdf's integral
 SAMPLES = 200_000
@@ -22,11 +21,14 @@ STACKS = {
         "brushed": Stack([metal("Al", (0.15, 0.45), angle=0.5)]),
         "oren-nayar": Stack([Diffuse((0.5, 0.4, 0.3), 0.5)]),
     },
-    **{m: {
-        "rough-coat-rough-copper": suite("rough-coat-rough-copper"),
-        "anisotropic-coat": Stack([Dielectric(1.5, (0.2, 0.45), angle=0.5), metal("Al", (0.35, 0.15), angle=-0.4)]),
-        "varnished-diffuse": suite("varnished-diffuse"),
-    } for m in ("belcour", "steinberg", "weidlich_wilkie")},
+    **{
+        m: {
+            "rough-coat-rough-copper": suite("rough-coat-rough-copper"),
+            "anisotropic-coat": Stack([Dielectric(1.5, (0.2, 0.45), angle=0.5), metal("Al", (0.35, 0.15), angle=-0.4)]),
+            "varnished-diffuse": suite("varnished-diffuse"),
+        }
+        for m in ("belcour", "steinberg", "weidlich_wilkie")
+    },
 }
 CASES = [(m, name) for m, stacks in STACKS.items() for name in stacks]
 THETAS = (20.0, 65.0)
@@ -107,8 +109,12 @@ def test_weight_is_f_cos_over_pdf_and_pdf_matches(model, name):
 
 @pytest.mark.parametrize("model", [m.name for m in lamina.models() if m.reciprocal and m.name != "reference"])
 def test_reciprocity_where_claimed(model, rng):
-    stacks = {"rough-gold": Stack([metal("Au", 0.3)]), "brushed": Stack([metal("Al", (0.15, 0.45), angle=0.5)]),
-              "oren-nayar": Stack([Diffuse(0.6, 0.5)]), "coat-lambert": Stack([Dielectric(1.5), Diffuse(0.7)])}
+    stacks = {
+        "rough-gold": Stack([metal("Au", 0.3)]),
+        "brushed": Stack([metal("Al", (0.15, 0.45), angle=0.5)]),
+        "oren-nayar": Stack([Diffuse(0.6, 0.5)]),
+        "coat-lambert": Stack([Dielectric(1.5), Diffuse(0.7)]),
+    }
     for stack in stacks.values():
         a, b = rng.normal(size=(500, 3)), rng.normal(size=(500, 3))
         a[:, 2], b[:, 2] = np.abs(a[:, 2]) + 0.05, np.abs(b[:, 2]) + 0.05
@@ -139,18 +145,23 @@ def test_specular_is_the_dirac_reflection():
     wo = np.array([[0.0, 0.0, 1.0], [0.6, 0.0, 0.8], [0.99, 0.0, 0.141]])
     wo = wo / np.linalg.norm(wo, axis=-1, keepdims=True)
     smooth = Stack([Conductor((0.2, 0.4, 1.4), (3.6, 2.5, 1.9))])
-    np.testing.assert_allclose(smooth.specular(wo), lamina.optics.fresnel_conductor(
-        wo[:, 2:3], np.array([0.2, 0.4, 1.4]), np.array([3.6, 2.5, 1.9])), rtol=1e-12)
+    np.testing.assert_allclose(
+        smooth.specular(wo),
+        lamina.optics.fresnel_conductor(wo[:, 2:3], np.array([0.2, 0.4, 1.4]), np.array([3.6, 2.5, 1.9])),
+        rtol=1e-12,
+    )
     plastic = Stack([Dielectric(1.5), Diffuse(0.5)])
     np.testing.assert_allclose(plastic.specular(wo)[:, 0], lamina.optics.fresnel_dielectric(wo[:, 2], 1.5), rtol=1e-12)
     for model in ("steinberg", "weidlich_wilkie"):
-        np.testing.assert_allclose(plastic.specular(wo, model)[:, 0],
-                                   lamina.optics.fresnel_dielectric(wo[:, 2], 1.5), rtol=1e-12)
+        np.testing.assert_allclose(
+            plastic.specular(wo, model)[:, 0], lamina.optics.fresnel_dielectric(wo[:, 2], 1.5), rtol=1e-12
+        )
     coat = suite("gold-clearcoat")  # smooth coat: Belcour's first lobe is a Dirac of its energy
     lobes = coat.lobes(wo)
     dirac = lobes["roughness"][..., 0] == 0
-    np.testing.assert_allclose(coat.specular(wo, "belcour"), np.sum(lobes["energy"] * dirac[..., None], axis=-2),
-                               rtol=1e-12)
+    np.testing.assert_allclose(
+        coat.specular(wo, "belcour"), np.sum(lobes["energy"] * dirac[..., None], axis=-2), rtol=1e-12
+    )
     assert np.all(Stack([metal("Au", 0.3)]).specular(wo) == 0)
     # Nothing to sample when the only lobe is a Dirac: weight and pdf 0.
     _, weight, pdf = smooth.sample(wo, np.full((3, 3), 0.5))

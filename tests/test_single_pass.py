@@ -5,13 +5,12 @@ docs/validation.md)."""
 
 from __future__ import annotations
 
+import lamina
 import numpy as np
 import pytest
+from conftest import random_hemisphere
 from hypothesis import given, settings
 from hypothesis import strategies as st
-
-import lamina
-from conftest import random_hemisphere
 
 SINGLE_PASS = ("steinberg", "weidlich_wilkie")
 
@@ -27,8 +26,11 @@ def test_one_interface_equals_the_microfacet_brdf(rough, rng):
     np.testing.assert_allclose(stack.eval(wi, wo, "steinberg"), stack.eval(wi, wo), rtol=1e-12)
     ts = dict(distribution="beckmann", g2="v_cavity")
     np.testing.assert_allclose(stack.eval(wi, wo, "weidlich_wilkie"), stack.eval(wi, wo, **ts), rtol=1e-12)
-    np.testing.assert_allclose(stack.eval(wi, wo, "weidlich_wilkie", fresnel="lazanyi"),
-                               stack.eval(wi, wo, fresnel="lazanyi", **ts), rtol=1e-12)
+    np.testing.assert_allclose(
+        stack.eval(wi, wo, "weidlich_wilkie", fresnel="lazanyi"),
+        stack.eval(wi, wo, fresnel="lazanyi", **ts),
+        rtol=1e-12,
+    )
 
 
 @pytest.mark.parametrize("model", SINGLE_PASS)
@@ -41,7 +43,7 @@ def test_smooth_coat_over_lambert_is_the_single_pass_closed_form(model, rng):
     wi, wo = random_hemisphere(rng, 300, 0.05), random_hemisphere(rng, 300, 0.05)
     cos_t = lambda w: np.sqrt(1 - (1 - w[:, 2] ** 2) / eta**2)  # noqa: E731
     a = np.exp(-sigma * d * (1 / cos_t(wi) + 1 / cos_t(wo))[:, None])
-    expected = ((1 - fresnel(wi[:, 2:], eta)) * (1 - fresnel(wo[:, 2:], eta)) * a * rho / (np.pi * eta**2))
+    expected = (1 - fresnel(wi[:, 2:], eta)) * (1 - fresnel(wo[:, 2:], eta)) * a * rho / (np.pi * eta**2)
     rtol = 2e-3 if model == "steinberg" else 1e-12
     np.testing.assert_allclose(stack.eval(wi, wo, model), expected, rtol=rtol)
     np.testing.assert_allclose(stack.eval(wi, wo, model, eta2=False), expected * eta**2, rtol=rtol)
@@ -49,23 +51,40 @@ def test_smooth_coat_over_lambert_is_the_single_pass_closed_form(model, rng):
 
 def test_rotating_layers_and_directions_together_leaves_f_unchanged(rng):
     def stack(turn):
-        return lamina.Stack([lamina.Dielectric(1.5, (0.1, 0.4), angle=0.5 + turn),
-                             lamina.materials.metal("Al", (0.35, 0.08), angle=-0.4 + turn)])
+        return lamina.Stack(
+            [
+                lamina.Dielectric(1.5, (0.1, 0.4), angle=0.5 + turn),
+                lamina.materials.metal("Al", (0.35, 0.08), angle=-0.4 + turn),
+            ]
+        )
+
     wi, wo = random_hemisphere(rng, 300), random_hemisphere(rng, 300)
     c, s = np.cos(0.8), np.sin(0.8)
     rot = np.array([[c, -s, 0], [s, c, 0], [0, 0, 1.0]])
     for model in SINGLE_PASS:
-        np.testing.assert_allclose(stack(0.8).eval(wi @ rot.T, wo @ rot.T, model), stack(0.0).eval(wi, wo, model),
-                                   rtol=1e-9)
+        np.testing.assert_allclose(
+            stack(0.8).eval(wi @ rot.T, wo @ rot.T, model), stack(0.0).eval(wi, wo, model), rtol=1e-9
+        )
 
 
 random_stacks = st.builds(
     lambda ior, a1, d, sa, ss, k, a2, diffuse, ior0, a0, two: lamina.Stack(
         ([lamina.Dielectric(ior0, a0)] if two else [])
-        + [lamina.Dielectric(ior, a1, thickness=d, sigma_a=sa, sigma_s=ss),
-           lamina.Diffuse(1.0, roughness=a2) if diffuse else lamina.Conductor(0.05, k, a2)]),
-    st.floats(1.001, 2.5), st.floats(0.0, 1.0), st.floats(0.0, 20.0), st.floats(0.0, 5.0), st.floats(0.0, 5.0),
-    st.floats(3.0, 10.0), st.floats(0.1, 1.0), st.booleans(), st.floats(1.001, 2.0), st.floats(0.0, 1.0),
+        + [
+            lamina.Dielectric(ior, a1, thickness=d, sigma_a=sa, sigma_s=ss),
+            lamina.Diffuse(1.0, roughness=a2) if diffuse else lamina.Conductor(0.05, k, a2),
+        ]
+    ),
+    st.floats(1.001, 2.5),
+    st.floats(0.0, 1.0),
+    st.floats(0.0, 20.0),
+    st.floats(0.0, 5.0),
+    st.floats(0.0, 5.0),
+    st.floats(3.0, 10.0),
+    st.floats(0.1, 1.0),
+    st.booleans(),
+    st.floats(1.001, 2.0),
+    st.floats(0.0, 1.0),
     st.booleans(),
 )
 
@@ -145,8 +164,9 @@ def test_car_paint_flakes():
     wi = np.array([0.3, 0.0, 0.95])
     wo = unit_rows(np.array([[-0.32, 0.02, 0.95], [-0.5, 0.1, 0.86], [0.1, -0.4, 0.9]]))
     plain = paint.eval(wi, wo, "weidlich_wilkie")
-    np.testing.assert_allclose(paint.eval(wi, wo, "weidlich_wilkie", flake_normal=np.zeros(3), distance=1.0), plain,
-                               rtol=1e-12)
+    np.testing.assert_allclose(
+        paint.eval(wi, wo, "weidlich_wilkie", flake_normal=np.zeros(3), distance=1.0), plain, rtol=1e-12
+    )
     # Far away the flakes are smoothed out: N = normalize(flake + distance ẑ) → ẑ.
     flakes = lamina.materials.flake_normals(np.array([[0.1, 0.2], [0.3, 0.4], [0.5, 0.9]]), spread=0.8)
     far = paint.eval(wi, wo, "weidlich_wilkie", flake_normal=flakes, distance=1e9)
@@ -175,8 +195,10 @@ def test_flake_generator_is_deterministic_with_the_stated_distribution(rng):
     se = 0.4 * np.sqrt(0.5 - 4 / 9) / np.sqrt(len(cells))
     assert abs(r[cells].mean() - 0.4 * 2 / 3) < 4 * se
     # Same cell, same flake.
-    np.testing.assert_array_equal(lamina.materials.flake_normals(np.array([[0.101, 0.2], [0.109, 0.2]]), 50),
-                                  lamina.materials.flake_normals(np.array([[0.105, 0.2], [0.105, 0.2]]), 50))
+    np.testing.assert_array_equal(
+        lamina.materials.flake_normals(np.array([[0.101, 0.2], [0.109, 0.2]]), 50),
+        lamina.materials.flake_normals(np.array([[0.105, 0.2], [0.105, 0.2]]), 50),
+    )
 
 
 def test_patina_coverage_and_tint(rng):
@@ -188,8 +210,9 @@ def test_patina_coverage_and_tint(rng):
     tinted = lamina.materials.Patina(extent=0.5, transition=0.1, tint=(0.5, 0.3, 0.2)).eval(wi, wo, 0.0)
     layer = p.stack.layers[0]
     top = lamina.Stack([layer, lamina.Diffuse(0.0)]).eval(wi, wo, "weidlich_wilkie")
-    np.testing.assert_allclose(tinted, top + np.array([0.5, 0.3, 0.2]) * (p.eval(wi, wo, 0.0) - top), rtol=1e-9,
-                               atol=1e-15)
+    np.testing.assert_allclose(
+        tinted, top + np.array([0.5, 0.3, 0.2]) * (p.eval(wi, wo, 0.0) - top), rtol=1e-9, atol=1e-15
+    )
     # Inside the transition the coverage follows the smoothstep and f stays between the bare and patina values
     # channel by channel is not guaranteed (roughness and IOR change with it); it must stay finite and positive.
     mid = p.eval(wi, wo, np.linspace(0.35, 0.65, 100))
@@ -212,8 +235,10 @@ def test_bad_input_names_the_parameter():
     with pytest.raises(TypeError, match="has no option 'flake_normal'"):
         stack.eval(w, w, "steinberg", flake_normal=w, distance=1.0)
     # distance defaults to 1 (no smoothing).
-    assert np.array_equal(stack.eval(w, w, "weidlich_wilkie", flake_normal=w),
-                          stack.eval(w, w, "weidlich_wilkie", flake_normal=w, distance=1.0))
+    assert np.array_equal(
+        stack.eval(w, w, "weidlich_wilkie", flake_normal=w),
+        stack.eval(w, w, "weidlich_wilkie", flake_normal=w, distance=1.0),
+    )
     with pytest.raises(ValueError, match="flake_normal contains NaN"):
         stack.eval(w, w, "weidlich_wilkie", flake_normal=[np.nan, 0, 0], distance=1.0)
     with pytest.raises(ValueError, match="extent must be in"):
@@ -245,12 +270,26 @@ def unit_rows(w):
 # Relative L1 error of f over the suite's outgoing grid, averaged over θi ∈ {0°, 30°, 60°}, 20k reference paths
 # per direction (seed 0); default options of each model. Guards: measured + 0.05 (absolute).
 MEASURED_LOBE_ERROR = {
-    "steinberg": {"anisotropic-coat-metal": 0.546, "frosted-metal": 0.708, "gold-clearcoat": 0.131,
-                  "rough-coat-rough-copper": 0.126, "scattering-slab": 0.822, "thick-absorbing-slab": 0.044,
-                  "three-layer": 0.13, "varnished-diffuse": 0.187},
-    "weidlich_wilkie": {"anisotropic-coat-metal": 0.557, "frosted-metal": 0.78, "gold-clearcoat": 0.231,
-                        "rough-coat-rough-copper": 0.184, "scattering-slab": 0.823, "thick-absorbing-slab": 0.187,
-                        "three-layer": 0.226, "varnished-diffuse": 0.186},
+    "steinberg": {
+        "anisotropic-coat-metal": 0.546,
+        "frosted-metal": 0.708,
+        "gold-clearcoat": 0.131,
+        "rough-coat-rough-copper": 0.126,
+        "scattering-slab": 0.822,
+        "thick-absorbing-slab": 0.044,
+        "three-layer": 0.13,
+        "varnished-diffuse": 0.187,
+    },
+    "weidlich_wilkie": {
+        "anisotropic-coat-metal": 0.557,
+        "frosted-metal": 0.78,
+        "gold-clearcoat": 0.231,
+        "rough-coat-rough-copper": 0.184,
+        "scattering-slab": 0.823,
+        "thick-absorbing-slab": 0.187,
+        "three-layer": 0.226,
+        "varnished-diffuse": 0.186,
+    },
 }
 
 
@@ -274,15 +313,21 @@ def precomputed_error(stack: lamina.Stack, rng, n: int = 20000) -> float:
 #: Elek 2010 reports < 6% for his tables. Measured (seed 0): the suite stacks within 0.03%; a polished (α = 0.02)
 #: aluminium base, whose Beckmann peak the 512 u = cos⁸θh nodes under-resolve, 12%. Guards: measured + 0.005.
 MEASURED_PRECOMPUTED = {
-    "gold-clearcoat": 0.0001, "rough-coat-rough-copper": 0.0001, "three-layer": 0.0003, "varnished-diffuse": 0.0001,
+    "gold-clearcoat": 0.0001,
+    "rough-coat-rough-copper": 0.0001,
+    "three-layer": 0.0003,
+    "varnished-diffuse": 0.0001,
     "polished-aluminium-under-smooth-coat": 0.121,
 }
 
 
 @pytest.mark.parametrize("name", sorted(MEASURED_PRECOMPUTED))
 def test_elek_precomputed_tables_stay_close_to_the_full_evaluation(name):
-    stack = (lamina.Stack([lamina.Dielectric(1.5), lamina.materials.metal("Al", 0.02)])
-             if name.startswith("polished") else lamina.materials.suite(name))
+    stack = (
+        lamina.Stack([lamina.Dielectric(1.5), lamina.materials.metal("Al", 0.02)])
+        if name.startswith("polished")
+        else lamina.materials.suite(name)
+    )
     err = precomputed_error(stack, np.random.default_rng(0))
     assert err <= MEASURED_PRECOMPUTED[name] + 0.005, err
 
@@ -302,15 +347,36 @@ def test_steinberg_is_smooth_near_the_normal(name):
 #: max over θi ∈ {0, 30, 60, 80, 87}° of |model albedo − reference albedo| (green channel; docs/validation.md, reference
 #: 200k brute-force paths per angle, standard error ≤ 1.1e-3). Guards: measured + 0.01 (≈ 9 reference SE).
 MEASURED_ALBEDO_ERROR = {
-    "belcour": {"gold-clearcoat": 0.373, "frosted-metal": 0.301, "rough-coat-rough-copper": 0.067,
-                "varnished-diffuse": 0.002, "anisotropic-coat-metal": 0.241, "thick-absorbing-slab": 0.171,
-                "three-layer": 0.077, "scattering-slab": 0.229},
-    "steinberg": {"gold-clearcoat": 0.105, "frosted-metal": 0.312, "rough-coat-rough-copper": 0.037,
-                  "varnished-diffuse": 0.005, "anisotropic-coat-metal": 0.207, "thick-absorbing-slab": 0.003,
-                  "three-layer": 0.039, "scattering-slab": 0.21},
-    "weidlich_wilkie": {"gold-clearcoat": 0.077, "frosted-metal": 0.13, "rough-coat-rough-copper": 0.129,
-                        "varnished-diffuse": 0.005, "anisotropic-coat-metal": 0.077, "thick-absorbing-slab": 0.183,
-                        "three-layer": 0.163, "scattering-slab": 0.21},
+    "belcour": {
+        "gold-clearcoat": 0.373,
+        "frosted-metal": 0.301,
+        "rough-coat-rough-copper": 0.067,
+        "varnished-diffuse": 0.002,
+        "anisotropic-coat-metal": 0.241,
+        "thick-absorbing-slab": 0.171,
+        "three-layer": 0.077,
+        "scattering-slab": 0.229,
+    },
+    "steinberg": {
+        "gold-clearcoat": 0.105,
+        "frosted-metal": 0.312,
+        "rough-coat-rough-copper": 0.037,
+        "varnished-diffuse": 0.005,
+        "anisotropic-coat-metal": 0.207,
+        "thick-absorbing-slab": 0.003,
+        "three-layer": 0.039,
+        "scattering-slab": 0.21,
+    },
+    "weidlich_wilkie": {
+        "gold-clearcoat": 0.077,
+        "frosted-metal": 0.13,
+        "rough-coat-rough-copper": 0.129,
+        "varnished-diffuse": 0.005,
+        "anisotropic-coat-metal": 0.077,
+        "thick-absorbing-slab": 0.183,
+        "three-layer": 0.163,
+        "scattering-slab": 0.21,
+    },
 }
 
 

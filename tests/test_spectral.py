@@ -2,15 +2,13 @@
 
 from __future__ import annotations
 
-import numpy as np
-import pytest
-
-import lamina
-from conftest import mitsuba_f, random_hemisphere
-
 import colour
 import drjit as dr
+import lamina
 import mitsuba as mi
+import numpy as np
+import pytest
+from conftest import mitsuba_f, random_hemisphere
 
 # colour-science: the PyPI package `colour-science`, not the unrelated `colour`.
 assert hasattr(colour, "sd_to_XYZ"), "the `colour` module must come from the colour-science package"
@@ -19,8 +17,11 @@ WAVELENGTHS = [[400.0, 470.0, 540.0, 610.0], [455.5, 550.0, 650.0, 700.0]]
 
 
 def irregular(s: lamina.Spectrum) -> dict:
-    return {"type": "irregular", "wavelengths": ", ".join(map(str, s.wavelengths_nm)),
-            "values": ", ".join(map(str, s.values))}
+    return {
+        "type": "irregular",
+        "wavelengths": ", ".join(map(str, s.wavelengths_nm)),
+        "values": ", ".join(map(str, s.values)),
+    }
 
 
 @pytest.mark.parametrize("metal", lamina.materials.IOR_MATERIALS)
@@ -52,8 +53,13 @@ def test_spectral_rough_conductor_stack_against_mitsuba(rng, distribution):
     wo /= np.linalg.norm(wo, axis=-1, keepdims=True)
     stack = lamina.Stack([lamina.Conductor(n, k, roughness=0.3)])
     ours = stack.eval(wi, wo, wavelengths=wl, distribution=distribution, g2="separable")
-    ref = mitsuba_f({"type": "roughconductor", "distribution": distribution, "alpha": 0.3, "eta": irregular(n),
-                     "k": irregular(k)}, wi, wo, variant="scalar_spectral", wavelengths=wl)
+    ref = mitsuba_f(
+        {"type": "roughconductor", "distribution": distribution, "alpha": 0.3, "eta": irregular(n), "k": irregular(k)},
+        wi,
+        wo,
+        variant="scalar_spectral",
+        wavelengths=wl,
+    )
     assert ours.shape == ref.shape == (40, 4)
     rtol = 1e-4 if distribution == "ggx" else 7e-3  # Mitsuba's Beckmann G1 approximation, see test_mitsuba.py
     np.testing.assert_allclose(ours, ref, rtol=rtol, atol=1e-6 * ref.max())
@@ -62,8 +68,9 @@ def test_spectral_rough_conductor_stack_against_mitsuba(rng, distribution):
 def _colour_xyz(wavelengths, values, linear: bool = False) -> np.ndarray:
     sd = colour.SpectralDistribution(dict(zip(wavelengths, values)))
     if linear:
-        sd = sd.interpolate(colour.SpectralShape(wavelengths[0], wavelengths[-1], 1),
-                            interpolator=colour.LinearInterpolator)
+        sd = sd.interpolate(
+            colour.SpectralShape(wavelengths[0], wavelengths[-1], 1), interpolator=colour.LinearInterpolator
+        )
     cmfs = colour.MSDS_CMFS["CIE 1931 2 Degree Standard Observer"]
     return colour.sd_to_XYZ(sd, cmfs, colour.SDS_ILLUMINANTS["D65"], method="Integration") / 100.0
 

@@ -11,14 +11,28 @@ Conventions (local frame, z = normal, directions pointing away, f without the co
 
 from . import materials, optics, reference
 from ._lamina import __version__
-from .layers import Conductor, Dielectric, Diffuse
 from .catalogue import MODELS, models
+from .layers import Conductor, Dielectric, Diffuse
 from .optics import jacobian_reflect, jacobian_refract
 from .spectrum import RGB_WAVELENGTHS, Spectrum, to_srgb, to_xyz, xyz_weights
 from .stack import Stack
 
 __all__ = [
-    "MODELS", "models", "Conductor", "Dielectric", "Diffuse", "Stack", "Spectrum", "RGB_WAVELENGTHS",
-    "to_xyz", "to_srgb", "xyz_weights", "materials", "optics", "reference", "jacobian_reflect", "jacobian_refract",
+    "MODELS",
+    "models",
+    "Conductor",
+    "Dielectric",
+    "Diffuse",
+    "Stack",
+    "Spectrum",
+    "RGB_WAVELENGTHS",
+    "to_xyz",
+    "to_srgb",
+    "xyz_weights",
+    "materials",
+    "optics",
+    "reference",
+    "jacobian_reflect",
+    "jacobian_refract",
     "__version__",
 ]

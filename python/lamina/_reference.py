@@ -30,8 +30,11 @@ def _progress(total: int, progress):
 
 def _finish(truncated: int):
     if truncated:
-        warnings.warn(f"{truncated} reference paths reached the depth limit ({_lamina.REFERENCE_MAX_DEPTH} events) "
-                      "and were dropped; the estimate is biased low by at most their share", stacklevel=4)
+        warnings.warn(
+            f"{truncated} reference paths reached the depth limit ({_lamina.REFERENCE_MAX_DEPTH} events) "
+            "and were dropped; the estimate is biased low by at most their share",
+            stacklevel=4,
+        )
 
 
 def _mean_stderr(s, s2, samples: int):
@@ -65,8 +68,9 @@ def f_estimate(layers, ext_ior, wi_rows, wo_rows, samples: int, seed: int, progr
             s = s2 = 0.0
             for first in range(0, samples, CHUNK):
                 n = min(CHUNK, samples - first)
-                a, b, t = _lamina.reference_f(layers, ext_ior, wi_list[lo:hi], wo_list[lo:hi], first, n, int(seed),
-                                              **options)
+                a, b, t = _lamina.reference_f(
+                    layers, ext_ior, wi_list[lo:hi], wo_list[lo:hi], first, n, int(seed), **options
+                )
                 s, s2 = s + np.asarray(a), s2 + np.asarray(b)
                 truncated += int(np.sum(t))
                 if bar is not None:
@@ -91,8 +95,9 @@ def tally(layers, ext_ior, wi_rows: np.ndarray, samples: int, seed: int, bins=(1
             s = s2 = None
             for first in range(0, samples, CHUNK):
                 n = min(CHUNK, samples - first)
-                a, b, t = _lamina.reference_tally(layers, ext_ior, [float(x) for x in wi], first, n, int(seed),
-                                                  n_theta, n_phi, **options)
+                a, b, t = _lamina.reference_tally(
+                    layers, ext_ior, [float(x) for x in wi], first, n, int(seed), n_theta, n_phi, **options
+                )
                 a, b = np.asarray(a), np.asarray(b)
                 s, s2 = (a, b) if s is None else (s + a, s2 + b)
                 truncated += int(np.sum(t))

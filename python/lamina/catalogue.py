@@ -60,21 +60,42 @@ class Model:
 
 
 def _from_rust(d: dict) -> Model:
-    options = {o["name"]: Option(o["name"], o["kind"], o["default"], o["doc"],
-                                 tuple(o["choices"]) if "choices" in o else None,
-                                 tuple(o["range"]) if "range" in o else None) for o in d["options"]}
+    options = {
+        o["name"]: Option(
+            o["name"],
+            o["kind"],
+            o["default"],
+            o["doc"],
+            tuple(o["choices"]) if "choices" in o else None,
+            tuple(o["range"]) if "range" in o else None,
+        )
+        for o in d["options"]
+    }
     inputs = {i["name"]: Input(i["name"], i["width"], tuple(i["range"]), i["doc"]) for i in d["inputs"]}
     return Model(d["name"], d["summary"], MappingProxyType(options), MappingProxyType(inputs), **d["properties"])
 
 
 _REFERENCE = Model(
-    "reference", "unbiased Monte Carlo random walk through the stack (the ground truth), with standard errors",
-    MappingProxyType({
-        "distribution": Option("distribution", "choice", "ggx", "microfacet distribution", ("ggx", "beckmann")),
-        "g2": Option("g2", "choice", "height_correlated", "masking-shadowing (Smith height-correlated, separable, or "
-                     "V-cavity)", ("height_correlated", "separable", "v_cavity")),
-    }),
-    MappingProxyType({}), reciprocal=True, energy_conserving=True, anisotropic=True, spectral=True)
+    "reference",
+    "unbiased Monte Carlo random walk through the stack (the ground truth), with standard errors",
+    MappingProxyType(
+        {
+            "distribution": Option("distribution", "choice", "ggx", "microfacet distribution", ("ggx", "beckmann")),
+            "g2": Option(
+                "g2",
+                "choice",
+                "height_correlated",
+                "masking-shadowing (Smith height-correlated, separable, or V-cavity)",
+                ("height_correlated", "separable", "v_cavity"),
+            ),
+        }
+    ),
+    MappingProxyType({}),
+    reciprocal=True,
+    energy_conserving=True,
+    anisotropic=True,
+    spectral=True,
+)
 
 _CATALOGUE = tuple(_from_rust(d) for d in _lamina.models()) + (_REFERENCE,)
 
@@ -115,13 +136,17 @@ def options_doc() -> str:
 def markdown_table() -> str:
     """The README's model table."""
     yes = {True: "yes", False: "no"}
-    rows = ["| model | what it is | options | per-element inputs | reciprocal | energy-conserving | anisotropic |",
-            "|---|---|---|---|---|---|---|"]
+    rows = [
+        "| model | what it is | options | per-element inputs | reciprocal | energy-conserving | anisotropic |",
+        "|---|---|---|---|---|---|---|",
+    ]
     for m in _CATALOGUE:
         opts = ", ".join(f"`{o}`" for o in m.options) or "—"
         inputs = ", ".join(f"`{i}`" for i in m.inputs) or "—"
-        rows.append(f"| `{m.name}` | {m.summary} | {opts} | {inputs} | {yes[m.reciprocal]} | "
-                    f"{yes[m.energy_conserving]} | {yes[m.anisotropic]} |")
+        rows.append(
+            f"| `{m.name}` | {m.summary} | {opts} | {inputs} | {yes[m.reciprocal]} | "
+            f"{yes[m.energy_conserving]} | {yes[m.anisotropic]} |"
+        )
     return "\n".join(rows)
 
 

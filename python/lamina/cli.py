@@ -28,8 +28,9 @@ def main(argv=None) -> int:
     from .plot import brdf_slices
 
     thetas = [float(t) for t in args.thetas.split(",")]
-    fig = brdf_slices(materials.preset(args.material), thetas, model=args.model,
-                      title=f"lamina {args.model}: {args.material}")
+    fig = brdf_slices(
+        materials.preset(args.material), thetas, model=args.model, title=f"lamina {args.model}: {args.material}"
+    )
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     path = out / f"{args.material}_{args.model}_slices.png"

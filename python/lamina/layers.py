@@ -6,8 +6,6 @@ from dataclasses import dataclass
 from numbers import Real
 from typing import Sequence, Union
 
-import numpy as np
-
 from . import _lamina
 from .spectrum import RGB_WAVELENGTHS, Spectrum
 
@@ -15,6 +13,7 @@ from .spectrum import RGB_WAVELENGTHS, Spectrum
 Colour = Union[float, Sequence[float], Spectrum]
 #: A GGX/Beckmann roughness alpha in [0, 1]: isotropic scalar or (alpha_x, alpha_y) along the layer's tangent.
 Roughness = Union[float, Sequence[float]]
+
 
 def _channels(name: str, value: Colour, wavelengths) -> list[float]:
     """Resolves a colour quantity to one value per channel: RGB (wavelengths None) or the given wavelengths."""
@@ -51,8 +50,10 @@ def _validate(layer, colours: tuple, scalars: tuple) -> None:
         try:
             object.__setattr__(layer, name, _colour(getattr(layer, name)))
         except TypeError:
-            raise TypeError(f"{type(layer).__name__}: {name} must be a number, an RGB triple or a lamina.Spectrum, "
-                            f"got {getattr(layer, name)!r}") from None
+            raise TypeError(
+                f"{type(layer).__name__}: {name} must be a number, an RGB triple or a lamina.Spectrum, "
+                f"got {getattr(layer, name)!r}"
+            ) from None
     for name in scalars:
         v = getattr(layer, name)
         if name == "roughness" and not isinstance(layer, Diffuse):
@@ -92,10 +93,14 @@ class Dielectric:
 
     def _resolve(self, wavelengths) -> dict:
         return dict(
-            kind="dielectric", ior=_channels("ior", self.ior, wavelengths), roughness=_roughness(self.roughness),
-            angle=float(self.angle), thickness=float(self.thickness),
+            kind="dielectric",
+            ior=_channels("ior", self.ior, wavelengths),
+            roughness=_roughness(self.roughness),
+            angle=float(self.angle),
+            thickness=float(self.thickness),
             sigma_a=_channels("sigma_a", self.sigma_a, wavelengths),
-            sigma_s=_channels("sigma_s", self.sigma_s, wavelengths), g=float(self.g),
+            sigma_s=_channels("sigma_s", self.sigma_s, wavelengths),
+            g=float(self.g),
         )
 
 
@@ -113,8 +118,11 @@ class Conductor:
 
     def _resolve(self, wavelengths) -> dict:
         return dict(
-            kind="conductor", ior=_channels("ior", self.ior, wavelengths), k=_channels("k", self.k, wavelengths),
-            roughness=_roughness(self.roughness), angle=float(self.angle),
+            kind="conductor",
+            ior=_channels("ior", self.ior, wavelengths),
+            k=_channels("k", self.k, wavelengths),
+            roughness=_roughness(self.roughness),
+            angle=float(self.angle),
         )
 
 
@@ -130,9 +138,9 @@ class Diffuse:
         _validate(self, ("albedo",), ("roughness",))
 
     def _resolve(self, wavelengths) -> dict:
-        return dict(kind="diffuse", albedo=_channels("albedo", self.albedo, wavelengths), roughness=float(self.roughness))
+        return dict(
+            kind="diffuse", albedo=_channels("albedo", self.albedo, wavelengths), roughness=float(self.roughness)
+        )
 
 
 Layer = Union[Dielectric, Conductor, Diffuse]
-
-

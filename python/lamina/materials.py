@@ -57,8 +57,9 @@ PRESETS = {
     # Layered: evaluate with model="belcour", "steinberg" or "weidlich_wilkie".
     "coated-copper": lambda: Stack([Dielectric(1.5, 0.2), metal("Cu", 0.35)]),
     "car-paint": lambda: car_paint(),
-    "varnished-wood": lambda: Stack([Dielectric(1.5, 0.05, thickness=1.0, sigma_a=(0.1, 0.35, 0.9)),
-                                     Diffuse((0.45, 0.25, 0.12), roughness=0.3)]),
+    "varnished-wood": lambda: Stack(
+        [Dielectric(1.5, 0.05, thickness=1.0, sigma_a=(0.1, 0.35, 0.9)), Diffuse((0.45, 0.25, 0.12), roughness=0.3)]
+    ),
 }
 
 #: The material suite used for validation and benchmarks: layered stacks covering coats over metals, absorbing and
@@ -68,27 +69,41 @@ SUITE = {
     "gold-clearcoat": lambda: Stack([Dielectric(1.5), metal("Au", 0.15)]),
     "frosted-metal": lambda: Stack([Dielectric(1.5, 0.35), metal("Al", 0.02)]),
     "rough-coat-rough-copper": lambda: Stack([Dielectric(1.5, 0.2), metal("Cu", 0.35)]),
-    "varnished-diffuse": lambda: Stack([Dielectric(1.5, thickness=1.0, sigma_a=(0.1, 0.35, 0.9)),
-                                        Diffuse((0.6, 0.35, 0.15))]),
-    "anisotropic-coat-metal": lambda: Stack([Dielectric(1.5, (0.1, 0.4), angle=0.5),
-                                             metal("Al", (0.35, 0.08), angle=-0.4)]),
-    "thick-absorbing-slab": lambda: Stack([Dielectric(1.5, 0.1, thickness=5.0, sigma_a=(0.05, 0.15, 0.4)),
-                                           Diffuse(0.8)]),
-    "three-layer": lambda: Stack([Dielectric(1.3, 0.1), Dielectric(1.6, 0.25, thickness=0.5, sigma_a=0.2),
-                                  metal("Cu", 0.2)]),
-    "scattering-slab": lambda: Stack([Dielectric(1.4, thickness=1.0, sigma_a=0.05, sigma_s=2.0, g=0.7),
-                                      Diffuse((0.5, 0.4, 0.3))]),
+    "varnished-diffuse": lambda: Stack(
+        [Dielectric(1.5, thickness=1.0, sigma_a=(0.1, 0.35, 0.9)), Diffuse((0.6, 0.35, 0.15))]
+    ),
+    "anisotropic-coat-metal": lambda: Stack(
+        [Dielectric(1.5, (0.1, 0.4), angle=0.5), metal("Al", (0.35, 0.08), angle=-0.4)]
+    ),
+    "thick-absorbing-slab": lambda: Stack(
+        [Dielectric(1.5, 0.1, thickness=5.0, sigma_a=(0.05, 0.15, 0.4)), Diffuse(0.8)]
+    ),
+    "three-layer": lambda: Stack(
+        [Dielectric(1.3, 0.1), Dielectric(1.6, 0.25, thickness=0.5, sigma_a=0.2), metal("Cu", 0.2)]
+    ),
+    "scattering-slab": lambda: Stack(
+        [Dielectric(1.4, thickness=1.0, sigma_a=0.05, sigma_s=2.0, g=0.7), Diffuse((0.5, 0.4, 0.3))]
+    ),
 }
 
 
-def car_paint(coat_absorption: Colour = (0.1, 1.2, 1.5), coat_thickness: float = 1.0, coat_roughness: Roughness = 0.03,
-              flake_roughness: Roughness = 0.25, ior: float = 1.5) -> Stack:
+def car_paint(
+    coat_absorption: Colour = (0.1, 1.2, 1.5),
+    coat_thickness: float = 1.0,
+    coat_roughness: Roughness = 0.03,
+    flake_roughness: Roughness = 0.25,
+    ior: float = 1.5,
+) -> Stack:
     """Elek 2010's metallic car paint: a tinted clear coat (absorption 1/scene unit over `coat_thickness`) over a
     chromium flake base with Elek's RGB complex IOR of Cr (ELEK2010). Evaluate with model="weidlich_wilkie" and
     per-sample `flake_normal` / `distance` (see `flake_normals`)."""
     n, k = ELEK2010["Cr"]
-    return Stack([Dielectric(ior, coat_roughness, thickness=coat_thickness, sigma_a=coat_absorption),
-                  Conductor(n, k, flake_roughness)])
+    return Stack(
+        [
+            Dielectric(ior, coat_roughness, thickness=coat_thickness, sigma_a=coat_absorption),
+            Conductor(n, k, flake_roughness),
+        ]
+    )
 
 
 def flake_normals(uv, density: float = 200.0, spread: float = 0.5, seed: int = 0) -> np.ndarray:
@@ -143,22 +158,34 @@ class Patina:
     `stack` is the patina stack; `eval` evaluates it with the per-element input `mask` and the options `extent`,
     `transition` and `tint` of model "weidlich_wilkie"."""
 
-    def __init__(self, extent: float = 0.5, transition: float = 0.1, thickness: float = 0.5,
-                 roughness: Roughness = 0.35, scattering: float = 2.0, copper_roughness: Roughness = 0.15,
-                 tint: Colour = (0.75, 0.45, 0.3)):
+    def __init__(
+        self,
+        extent: float = 0.5,
+        transition: float = 0.1,
+        thickness: float = 0.5,
+        roughness: Roughness = 0.35,
+        scattering: float = 2.0,
+        copper_roughness: Roughness = 0.15,
+        tint: Colour = (0.75, 0.45, 0.3),
+    ):
         n_cu, k_cu = ELEK2010["Cu"]
         n_p, k_p = ELEK2010["Cu2O"]
         sigma_a = tuple((4 * np.pi * np.asarray(k_p) / _RGB_UM).tolist())
-        self.stack = Stack([Dielectric(n_p, roughness, thickness=thickness, sigma_a=sigma_a, sigma_s=scattering),
-                            Conductor(n_cu, k_cu, copper_roughness)])
+        self.stack = Stack(
+            [
+                Dielectric(n_p, roughness, thickness=thickness, sigma_a=sigma_a, sigma_s=scattering),
+                Conductor(n_cu, k_cu, copper_roughness),
+            ]
+        )
         self.bare = Stack(self.stack.layers[1:])
         self.params = dict(extent=extent, transition=transition, tint=tuple(_channels("tint", tint, None)))
         self.eval([0, 0, 1.0], [0, 0, 1.0], 0.0)  # validates the parameters
 
     def __repr__(self) -> str:
         p = self.params
-        return (f"Patina(extent={p['extent']!r}, transition={p['transition']!r}, tint={p['tint']!r}, "
-                f"stack={self.stack!r})")
+        return (
+            f"Patina(extent={p['extent']!r}, transition={p['transition']!r}, tint={p['tint']!r}, stack={self.stack!r})"
+        )
 
     def eval(self, wi, wo, mask, **options) -> np.ndarray:
         """f(wi, wo) where the grayscale map has value `mask` (in [0, 1]); wi, wo (..., 3) and mask (...) broadcast.
@@ -181,4 +208,18 @@ def suite(name: str) -> Stack:
         raise ValueError(f"name must be one of {sorted(SUITE)}, got {name!r}") from None
 
 
-__all__ = ["SUITE", "suite", "car_paint", "flake_normals", "Patina", "patina", "metal", "elek2010_rgb", "ELEK2010", "plastic", "preset", "PRESETS", "IOR_MATERIALS"]
+__all__ = [
+    "SUITE",
+    "suite",
+    "car_paint",
+    "flake_normals",
+    "Patina",
+    "patina",
+    "metal",
+    "elek2010_rgb",
+    "ELEK2010",
+    "plastic",
+    "preset",
+    "PRESETS",
+    "IOR_MATERIALS",
+]

@@ -134,8 +134,11 @@ def steinberg_lut(mu, alpha, eta, lut: str = "tabulated") -> np.ndarray:
     ([0, 1]) and relative IOR `eta` ([0.25, 4], below / above): (..., 2) with t, the mean Fresnel transmission over
     the visible microfacets, and s, the sine of the mean refracted direction. `lut` 'tabulated' | 'fitted'."""
     mu, alpha, eta = broadcast(mu=(mu, 0), alpha=(alpha, 0), eta=(eta, 0))
-    for name, x, lo, hi, lo_open in (("mu", mu, 0.0, 1.0, True), ("alpha", alpha, 0.0, 1.0, False),
-                                     ("eta", eta, 0.25, 4.0, False)):
+    for name, x, lo, hi, lo_open in (
+        ("mu", mu, 0.0, 1.0, True),
+        ("alpha", alpha, 0.0, 1.0, False),
+        ("eta", eta, 0.25, 4.0, False),
+    ):
         if not np.all(np.isfinite(x)) or np.any(x > hi) or np.any(x <= lo if lo_open else x < lo):
             raise ValueError(f"{name} must be in {'(' if lo_open else '['}{lo}, {hi}]")
     return _lamina.steinberg_lut(mu, alpha, eta, lut)

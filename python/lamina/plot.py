@@ -13,8 +13,14 @@ def in_plane_directions(theta_deg) -> np.ndarray:
     return np.stack([np.sin(t), np.zeros_like(t), np.cos(t)], axis=-1)
 
 
-def brdf_slices(stack: Stack, thetas_i_deg=(0, 30, 60, 80), model: str = "microfacet", title: str | None = None,
-                n: int = 721, **options):
+def brdf_slices(
+    stack: Stack,
+    thetas_i_deg=(0, 30, 60, 80),
+    model: str = "microfacet",
+    title: str | None = None,
+    n: int = 721,
+    **options,
+):
     """Figure of in-plane slices f(wi, wo) for several incident zenith angles (one panel each, log scale), the
     outgoing direction sweeping the plane of incidence from -90° (backward) to +90° (forward, specular side).
     Channels are drawn in red, green and blue. Returns the matplotlib Figure."""
@@ -25,8 +31,9 @@ def brdf_slices(stack: Stack, thetas_i_deg=(0, 30, 60, 80), model: str = "microf
 
     theta_o = np.linspace(-89.5, 89.5, n)
     wo = in_plane_directions(theta_o)
-    fig, axes = plt.subplots(1, len(thetas_i_deg), figsize=(3.2 * len(thetas_i_deg), 3.2), sharey=True,
-                             constrained_layout=True)
+    fig, axes = plt.subplots(
+        1, len(thetas_i_deg), figsize=(3.2 * len(thetas_i_deg), 3.2), sharey=True, constrained_layout=True
+    )
     for ax, ti in zip(np.atleast_1d(axes), thetas_i_deg):
         wi = in_plane_directions(-ti)  # light on the -x side: its mirror direction is at +θi
         f = stack.eval(wi, wo, model=model, **options)

@@ -15,8 +15,19 @@ from ._reference import CHUNK, WORK_PER_CALL, f_estimate, tally
 from .layers import Dielectric
 from .materials import suite
 
-__all__ = ["CHUNK", "WORK_PER_CALL", "SUITE_THETAS", "cache_dir", "cache_key", "cached_reference", "f_estimate",
-           "suite_directions", "suite_reference", "suite_reference_albedo", "tally"]
+__all__ = [
+    "CHUNK",
+    "WORK_PER_CALL",
+    "SUITE_THETAS",
+    "cache_dir",
+    "cache_key",
+    "cached_reference",
+    "f_estimate",
+    "suite_directions",
+    "suite_reference",
+    "suite_reference_albedo",
+    "tally",
+]
 
 
 #: Incident zenith angles (degrees) of the suite's reference grid.
@@ -43,9 +54,21 @@ def cache_key(stack, wi, wo, samples: int, seed: int, **options) -> str:
     """Hash of everything a reference result depends on: the resolved stack, directions, sample count, seed,
     options and the lamina version."""
     h = hashlib.sha256()
-    h.update(json.dumps([stack._resolve(options.get("wavelengths")), stack.ext_ior, samples, seed,
-                         {k: (np.asarray(v).tolist() if k == "wavelengths" and v is not None else v)
-                          for k, v in sorted(options.items())}, _lamina.__version__]).encode())
+    h.update(
+        json.dumps(
+            [
+                stack._resolve(options.get("wavelengths")),
+                stack.ext_ior,
+                samples,
+                seed,
+                {
+                    k: (np.asarray(v).tolist() if k == "wavelengths" and v is not None else v)
+                    for k, v in sorted(options.items())
+                },
+                _lamina.__version__,
+            ]
+        ).encode()
+    )
     for a in (wi, wo):
         h.update(np.ascontiguousarray(a, dtype=np.float64).tobytes())
         h.update(str(np.shape(a)).encode())

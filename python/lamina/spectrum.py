@@ -4,7 +4,7 @@ CIE 1931 XYZ and linear sRGB under D65."""
 from __future__ import annotations
 
 from dataclasses import dataclass
-from functools import lru_cache
+from functools import cache, lru_cache
 from pathlib import Path
 
 import numpy as np
@@ -50,22 +50,30 @@ class Spectrum:
         lo, hi = self.wavelengths_nm[0], self.wavelengths_nm[-1]
         if not self.extrapolate and np.any((wl < lo) | (wl > hi)):
             outside = wl[(wl < lo) | (wl > hi)]
-            raise ValueError(f"wavelengths: {outside.min():g} nm lies outside the measured range {lo:g}-{hi:g} nm of "
-                             f"{self.name or 'this spectrum'}")
+            raise ValueError(
+                f"wavelengths: {outside.min():g} nm lies outside the measured range {lo:g}-{hi:g} nm of "
+                f"{self.name or 'this spectrum'}"
+            )
         return np.interp(wl, self.wavelengths_nm, self.values)
 
     def __eq__(self, other) -> bool:
-        return (isinstance(other, Spectrum) and np.array_equal(self.wavelengths_nm, other.wavelengths_nm)
-                and np.array_equal(self.values, other.values) and self.extrapolate == other.extrapolate)
+        return (
+            isinstance(other, Spectrum)
+            and np.array_equal(self.wavelengths_nm, other.wavelengths_nm)
+            and np.array_equal(self.values, other.values)
+            and self.extrapolate == other.extrapolate
+        )
 
     def __hash__(self) -> int:
         return hash((self.wavelengths_nm.tobytes(), self.values.tobytes(), self.extrapolate))
 
     def __repr__(self) -> str:
-        return f"Spectrum({self.wavelengths_nm[0]:g}-{self.wavelengths_nm[-1]:g} nm, {self.wavelengths_nm.size} samples)"
+        return (
+            f"Spectrum({self.wavelengths_nm[0]:g}-{self.wavelengths_nm[-1]:g} nm, {self.wavelengths_nm.size} samples)"
+        )
 
 
-@lru_cache(maxsize=None)
+@cache
 def ior(material: str) -> tuple[Spectrum, Spectrum]:
     """Measured complex refractive index (n, k) of `material` (one of IOR_MATERIALS) as two Spectra."""
     if material not in IOR_MATERIALS:
@@ -73,8 +81,10 @@ def ior(material: str) -> tuple[Spectrum, Spectrum]:
     lines = [ln for ln in (_DATA / "ior" / f"{material}.csv").read_text().splitlines() if ln and ln[0] != "#"]
     assert lines[0] == "wavelength_nm,n,k", f"unexpected header in {material}.csv"
     t = np.loadtxt(lines[1:], delimiter=",")
-    return (Spectrum(t[:, 0], t[:, 1], f"n of {material}", extrapolate=False),
-            Spectrum(t[:, 0], t[:, 2], f"k of {material}", extrapolate=False))
+    return (
+        Spectrum(t[:, 0], t[:, 1], f"n of {material}", extrapolate=False),
+        Spectrum(t[:, 0], t[:, 2], f"k of {material}", extrapolate=False),
+    )
 
 
 @lru_cache(maxsize=1)

@@ -10,9 +10,9 @@ import numpy as np
 
 from . import _lamina, _reference
 from ._arrays import broadcast
-from .layers import Conductor, Dielectric, Diffuse, Layer
 from .catalogue import model as _model
 from .catalogue import options_doc
+from .layers import Conductor, Dielectric, Diffuse, Layer
 
 _LAYERS = (Dielectric, Conductor, Diffuse)
 
@@ -30,7 +30,9 @@ class Stack:
         self.layers = tuple(layers)
         for i, layer in enumerate(self.layers):
             if not isinstance(layer, _LAYERS):
-                raise TypeError(f"layers[{i}] must be a lamina.Dielectric, Conductor or Diffuse, got {type(layer).__name__}")
+                raise TypeError(
+                    f"layers[{i}] must be a lamina.Dielectric, Conductor or Diffuse, got {type(layer).__name__}"
+                )
         if not isinstance(ext_ior, Real) or isinstance(ext_ior, bool):
             raise TypeError(f"ext_ior must be a number, got {ext_ior!r}")
         self.ext_ior = float(ext_ior)
@@ -55,12 +57,15 @@ class Stack:
         options = {k: v for k, v in kwargs.items() if k not in m.inputs}
         unknown = [k for k in options if k not in m.options]
         if unknown:
-            raise TypeError(f"model {model!r} has no option {unknown[0]!r}; its options are {list(m.options)} and its "
-                            f"per-element inputs {list(m.inputs)}")
+            raise TypeError(
+                f"model {model!r} has no option {unknown[0]!r}; its options are {list(m.options)} and its "
+                f"per-element inputs {list(m.inputs)}"
+            )
         return m, options, inputs
 
-    def eval(self, wi, wo, model: str = "microfacet", *, wavelengths=None, samples: int = 10_000, seed: int = 0,
-             **kwargs) -> np.ndarray:
+    def eval(
+        self, wi, wo, model: str = "microfacet", *, wavelengths=None, samples: int = 10_000, seed: int = 0, **kwargs
+    ) -> np.ndarray:
         """The BRDF f(wi, wo), not multiplied by cos θi.
 
         wi, wo: directions (..., 3) in the local frame (z = normal), both pointing away from the surface: wi towards
@@ -80,8 +85,11 @@ class Stack:
         if m.name == "reference":
             return self.reference(wi, wo, wavelengths=wavelengths, samples=samples, seed=seed, **options)[0]
         wl = _wavelengths(wavelengths)
-        arrays = broadcast(wi=(wi, 3), wo=(wo, 3), **{k: (v, 0 if m.inputs[k].width == 1 else m.inputs[k].width)
-                                                      for k, v in inputs.items()})
+        arrays = broadcast(
+            wi=(wi, 3),
+            wo=(wo, 3),
+            **{k: (v, 0 if m.inputs[k].width == 1 else m.inputs[k].width) for k, v in inputs.items()},
+        )
         named = dict(zip(inputs, arrays[2:]))
         return _lamina.eval(self._resolve(wl), self.ext_ior, m.name, arrays[0], arrays[1], options, named)
 
@@ -98,8 +106,11 @@ class Stack:
         form; its samples include the Dirac paths."""
         m, options, inputs = self._split(model, kwargs)
         wl = _wavelengths(wavelengths)
-        wo, u, *rest = broadcast(wo=(wo, 3), u=(u, 3), **{k: (v, 0 if m.inputs[k].width == 1 else m.inputs[k].width)
-                                                          for k, v in inputs.items()})
+        wo, u, *rest = broadcast(
+            wo=(wo, 3),
+            u=(u, 3),
+            **{k: (v, 0 if m.inputs[k].width == 1 else m.inputs[k].width) for k, v in inputs.items()},
+        )
         if m.name == "reference":
             out = _lamina.reference_sample(self._resolve(wl), self.ext_ior, wo, u, **options)
         else:
@@ -112,8 +123,9 @@ class Stack:
         if m.name == "reference":
             raise ValueError("model 'reference' has no closed-form pdf: its samples come from random walks")
         if inputs:
-            raise TypeError(f"pdf takes no per-element inputs (the sampling mixture does not depend on them), got "
-                            f"{list(inputs)}")
+            raise TypeError(
+                f"pdf takes no per-element inputs (the sampling mixture does not depend on them), got {list(inputs)}"
+            )
         wi, wo = broadcast(wi=(wi, 3), wo=(wo, 3))
         return _lamina.pdf(self._resolve(_wavelengths(wavelengths)), self.ext_ior, m.name, wi, wo, options)[..., 0]
 
@@ -123,20 +135,40 @@ class Stack:
         out; a renderer adds it as a delta component."""
         m, options, _ = self._split(model, options)
         if m.name == "reference":
-            raise ValueError("model 'reference' includes Dirac paths in its samples and albedo; it has no separate "
-                             "specular part")
+            raise ValueError(
+                "model 'reference' includes Dirac paths in its samples and albedo; it has no separate specular part"
+            )
         (wo,) = broadcast(wo=(wo, 3))
         return _lamina.specular(self._resolve(_wavelengths(wavelengths)), self.ext_ior, m.name, wo, options)
 
-    def reference(self, wi, wo, *, wavelengths=None, samples: int = 100_000, seed: int = 0, progress=None,
-                  distribution: str = "ggx", g2: str = "height_correlated"):
+    def reference(
+        self,
+        wi,
+        wo,
+        *,
+        wavelengths=None,
+        samples: int = 100_000,
+        seed: int = 0,
+        progress=None,
+        distribution: str = "ggx",
+        g2: str = "height_correlated",
+    ):
         """Monte Carlo ground truth for f(wi, wo): unbiased, with next-event estimation through the stack's delta
         interfaces (see src/reference.rs). wi, wo: (..., 3), broadcast. Returns (f, stderr), each (..., channels).
         Specular (Dirac) lobes are not part of f. Deterministic for a seed, whatever the thread count."""
         wl = _wavelengths(wavelengths)
         wi, wo = broadcast(wi=(wi, 3), wo=(wo, 3))
-        mean, err = _reference.f_estimate(self._resolve(wl), self.ext_ior, _unit_rows("wi", wi), _unit_rows("wo", wo),
-                                          samples, seed, progress=progress, distribution=distribution, g2=g2)
+        mean, err = _reference.f_estimate(
+            self._resolve(wl),
+            self.ext_ior,
+            _unit_rows("wi", wi),
+            _unit_rows("wo", wo),
+            samples,
+            seed,
+            progress=progress,
+            distribution=distribution,
+            g2=g2,
+        )
         shape = wi.shape[:-1] + (mean.shape[-1],)
         return mean.reshape(shape), err.reshape(shape)
 
@@ -153,13 +185,24 @@ class Stack:
         (wo,) = broadcast(wo=(wo, 3))
         rows = _unit_rows("wo", wo)
         lead = wo.shape[:-1]
-        energy, cov, rough = (np.asarray(a, dtype=np.float64).reshape(lead + np.shape(a)[1:])
-                              for a in _lamina.belcour_lobes(self._resolve(wl), self.ext_ior, rows.tolist()))
+        energy, cov, rough = (
+            np.asarray(a, dtype=np.float64).reshape(lead + np.shape(a)[1:])
+            for a in _lamina.belcour_lobes(self._resolve(wl), self.ext_ior, rows.tolist())
+        )
         sigma = np.stack([cov[..., 0], cov[..., 1], cov[..., 1], cov[..., 2]], -1).reshape(cov.shape[:-1] + (2, 2))
         return {"energy": energy, "covariance": sigma, "roughness": rough[..., :2], "angle": rough[..., 2]}
 
-    def albedo(self, wi, model: str = "microfacet", *, wavelengths=None, samples: int = 100_000, seed: int = 0,
-               progress=None, **model_options):
+    def albedo(
+        self,
+        wi,
+        model: str = "microfacet",
+        *,
+        wavelengths=None,
+        samples: int = 100_000,
+        seed: int = 0,
+        progress=None,
+        **model_options,
+    ):
         """Directional albedo ∫ f(wi, wo) cos θo dωo: the fraction of light from wi that the stack reflects.
 
         wi: (..., 3). Returns (..., channels). For an analytic model the integral is a midpoint quadrature
@@ -171,21 +214,38 @@ class Stack:
         (wi,) = broadcast(wi=(wi, 3))
         rows = _unit_rows("wi", wi)
         if m.name == "reference":
-            mean, err = _reference.tally(self._resolve(wl), self.ext_ior, rows, samples, seed, progress=progress,
-                                         **model_options)
+            mean, err = _reference.tally(
+                self._resolve(wl), self.ext_ior, rows, samples, seed, progress=progress, **model_options
+            )
             shape = wi.shape[:-1] + (mean.shape[1],)
             return mean[..., 0].reshape(shape), err[..., 0].reshape(shape)
         nt, npp = 512, 1024
         t = (np.arange(nt) + 0.5) * (np.pi / 2 / nt)
         p = (np.arange(npp) + 0.5) * (2 * np.pi / npp)
-        wo = np.stack([np.outer(np.sin(t), np.cos(p)), np.outer(np.sin(t), np.sin(p)),
-                       np.repeat(np.cos(t)[:, None], npp, axis=1)], axis=-1)
+        wo = np.stack(
+            [
+                np.outer(np.sin(t), np.cos(p)),
+                np.outer(np.sin(t), np.sin(p)),
+                np.repeat(np.cos(t)[:, None], npp, axis=1),
+            ],
+            axis=-1,
+        )
         weight = (np.cos(t) * np.sin(t))[:, None, None] * (np.pi / 2 / nt) * (2 * np.pi / npp)
         out = [np.sum(self.eval(w, wo, model, wavelengths=wl, **model_options) * weight, axis=(0, 1)) for w in rows]
         return np.array(out).reshape(wi.shape[:-1] + (len(out[0]),))
 
-    def reference_lobe(self, wi, bins=(18, 36), *, wavelengths=None, samples: int = 1_000_000, seed: int = 0,
-                       progress=None, distribution: str = "ggx", g2: str = "height_correlated"):
+    def reference_lobe(
+        self,
+        wi,
+        bins=(18, 36),
+        *,
+        wavelengths=None,
+        samples: int = 1_000_000,
+        seed: int = 0,
+        progress=None,
+        distribution: str = "ggx",
+        g2: str = "height_correlated",
+    ):
         """Brute-force Monte Carlo lobe for light from one direction `wi` (3,): the reflected energy per steradian,
         i.e. f·cos θo averaged over each of n_theta x n_phi bins uniform in (θo, φo) (delta lobes included).
 
@@ -204,8 +264,17 @@ class Stack:
         if n_theta < 1 or n_phi < 1 or n_theta * n_phi > 1 << 22:
             raise ValueError(f"bins must be positive with n_theta x n_phi in [1, 2**22], got {bins!r}")
         n_theta, n_phi = int(n_theta), int(n_phi)
-        mean, err = _reference.tally(self._resolve(wl), self.ext_ior, _unit_rows("wi", wi), samples, seed,
-                                     bins=(n_theta, n_phi), progress=progress, distribution=distribution, g2=g2)
+        mean, err = _reference.tally(
+            self._resolve(wl),
+            self.ext_ior,
+            _unit_rows("wi", wi),
+            samples,
+            seed,
+            bins=(n_theta, n_phi),
+            progress=progress,
+            distribution=distribution,
+            g2=g2,
+        )
         te = np.linspace(0, np.pi / 2, n_theta + 1)
         pe = np.linspace(0, 2 * np.pi, n_phi + 1)
         solid = np.outer(np.cos(te[:-1]) - np.cos(te[1:]), np.diff(pe))  # (n_theta, n_phi) steradians
@@ -235,5 +304,7 @@ def _wavelengths(wavelengths):
     except (TypeError, ValueError):
         raise TypeError(f"wavelengths must be a 1-D array of wavelengths in nm, got {wavelengths!r}") from None
     if wl.ndim != 1 or wl.size == 0 or not np.all(np.isfinite(wl)) or np.any(wl <= 0):
-        raise ValueError(f"wavelengths must be a non-empty 1-D array of positive finite values in nm, got {wavelengths!r}")
+        raise ValueError(
+            f"wavelengths must be a non-empty 1-D array of positive finite values in nm, got {wavelengths!r}"
+        )
     return wl

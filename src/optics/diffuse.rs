@@ -36,8 +36,9 @@ pub fn oren_nayar_shape(sigma: f64, wi: DVec3, wo: DVec3) -> f64 {
     } else {
         0.0
     };
-    // sin α tan β with α the larger zenith angle, β the smaller one.
-    let sin_alpha_tan_beta = if wi.z > wo.z { sin_o * sin_i / wi.z } else { sin_i * sin_o / wo.z };
+    // sin α tan β with α the larger zenith angle, β the smaller one; tan β grows without bound as both directions
+    // graze, so its cosine is kept ≥ 1e-12 (f stays finite; unchanged above 1e-12).
+    let sin_alpha_tan_beta = sin_i * sin_o / wi.z.max(wo.z).max(1e-12);
     FRAC_1_PI * (a + b * cos_dphi.max(0.0) * sin_alpha_tan_beta)
 }
 

@@ -29,11 +29,51 @@ impl Kind {
     }
 }
 
-/// The elements of one input array in logical (C) order: NumPy's own memory when it is contiguous, else a copy.
+/// A non-contiguous (strided or broadcast) input, read in place: no copy, whatever its size.
+struct Strided<T> {
+    ptr: *const T,
+    /// The batch axes' lengths and strides (in elements), and the stride of the last (vector) axis.
+    dims: Vec<usize>,
+    strides: Vec<isize>,
+    last: isize,
+}
+
+// SAFETY: the pointer reads a NumPy array that the caller keeps borrowed read-only for the whole evaluation.
+unsafe impl<T: Sync> Sync for Strided<T> {}
+unsafe impl<T: Sync> Send for Strided<T> {}
+
+impl<T: Copy + Into<f64>> Strided<T> {
+    fn new(a: numpy::ndarray::ArrayViewD<'_, T>) -> Self {
+        let nd = a.ndim();
+        Strided {
+            ptr: a.as_ptr(),
+            dims: a.shape()[..nd - 1].to_vec(),
+            strides: a.strides()[..nd - 1].to_vec(),
+            last: a.strides()[nd - 1],
+        }
+    }
+
+    fn gather(&self, w: usize, start: usize, len: usize, cols: &mut [[f64; BLOCK]; MAX_WIDTH]) {
+        for r in 0..len {
+            let (mut i, mut offset) = (start + r, 0isize);
+            for (&n, &stride) in self.dims.iter().zip(&self.strides).rev() {
+                offset += (i % n) as isize * stride;
+                i /= n;
+            }
+            for (c, col) in cols.iter_mut().enumerate().take(w) {
+                // SAFETY: the offset is that of element (row, c) inside the borrowed array.
+                col[r] = unsafe { *self.ptr.offset(offset + c as isize * self.last) }.into();
+            }
+        }
+    }
+}
+
+/// The elements of one input array in logical (C) order: NumPy's own memory, contiguous or strided.
 enum Data<'a> {
     F64(&'a [f64]),
     F32(&'a [f32]),
-    Copied(Vec<f64>),
+    Strided64(Strided<f64>),
+    Strided32(Strided<f32>),
 }
 
 impl Data<'_> {
@@ -50,7 +90,8 @@ impl Data<'_> {
         match self {
             Data::F64(s) => transpose(&s[range], w, cols),
             Data::F32(s) => transpose(&s[range], w, cols),
-            Data::Copied(v) => transpose(&v[range], w, cols),
+            Data::Strided64(v) => v.gather(w, start, len, cols),
+            Data::Strided32(v) => v.gather(w, start, len, cols),
         }
     }
 }
@@ -187,7 +228,7 @@ pub fn batch_blocks<'py>(
             )));
         }
     }
-    // Borrow contiguous NumPy memory; copy only strided inputs.
+    // Read NumPy's memory in place, contiguous or strided (broadcast inputs are never materialised).
     let (mut it64, mut it32) = (f64s.iter(), f32s.iter());
     let data: Vec<Data> = inputs
         .iter()
@@ -196,13 +237,13 @@ pub fn batch_blocks<'py>(
                 let a = it64.next().unwrap();
                 match a.as_slice() {
                     Ok(s) if a.is_c_contiguous() => Data::F64(s),
-                    _ => Data::Copied(a.as_array().iter().copied().collect()),
+                    _ => Data::Strided64(Strided::new(a.as_array())),
                 }
             } else {
                 let a = it32.next().unwrap();
                 match a.as_slice() {
                     Ok(s) if a.is_c_contiguous() => Data::F32(s),
-                    _ => Data::Copied(a.as_array().iter().map(|&x| x as f64).collect()),
+                    _ => Data::Strided32(Strided::new(a.as_array())),
                 }
             }
         })

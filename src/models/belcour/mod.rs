@@ -203,7 +203,7 @@ impl Prepared {
         if self.table.is_some() {
             return self.eval_columns([&[wi.x], &[wi.y], &[wi.z]], [&[wo.x], &[wo.y], &[wo.z]], out);
         }
-        let cos_theta = if self.symmetric { wo.dot((wi + wo).normalize()).abs() } else { wo.z };
+        let cos_theta = if self.symmetric { symmetric_cosine(wi, wo) } else { wo.z };
         let (cos_phi, sin_phi) = azimuth(wo);
         let (lobes, view) = self.adding(cos_theta, cos_phi, sin_phi);
         for lobe in &lobes {
@@ -235,6 +235,18 @@ impl Prepared {
             let rho = d.albedo[ch];
             *o += rho * FRAC_1_PI * down(ch) * up(ch) / ((1.0 - rho * d.r_up[ch]) * d.eta * d.eta);
         }
+    }
+}
+
+/// |wo·h| with h the half vector (Belcour 2018 §6): where wi + wo is too short to normalise (a grazing mirror pair,
+/// whose half vector is the normal), wo·n.
+#[inline(always)]
+fn symmetric_cosine(wi: DVec3, wo: DVec3) -> f64 {
+    let c = wo.dot((wi + wo).normalize()).abs();
+    if c.is_finite() {
+        c
+    } else {
+        wo.z
     }
 }
 

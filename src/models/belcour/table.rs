@@ -1,7 +1,7 @@
 //! The adding-doubling tabulated over the viewing direction, and the block evaluator that interpolates it.
 
 use super::cov::Cov;
-use super::Prepared;
+use super::{symmetric_cosine, Prepared};
 use crate::bsdf;
 use crate::models::{eval_rows, BLOCK};
 use crate::optics::distribution::{Distribution, G2Form, Microfacet};
@@ -123,8 +123,7 @@ impl Prepared {
         for r in 0..n {
             above[r] = iz[r] > 0.0 && oz[r] > 0.0;
             cos_theta[r] = if self.symmetric && above[r] {
-                let (wi, wo) = (DVec3::new(ix[r], iy[r], iz[r]), DVec3::new(ox[r], oy[r], oz[r]));
-                wo.dot((wi + wo).normalize()).abs()
+                symmetric_cosine(DVec3::new(ix[r], iy[r], iz[r]), DVec3::new(ox[r], oy[r], oz[r]))
             } else {
                 oz[r]
             };
