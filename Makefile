@@ -37,7 +37,7 @@ system-deps:
 	fi
 
 test-deps: venv system-deps
-	$(VPY) -m pip install -q "pytest>=7" "hypothesis>=6" "colour-science>=0.4.4" scipy "mitsuba>=3.9,<3.10" "ruff>=0.6"
+	$(VPY) -m pip install -q "pytest>=7" "hypothesis>=6" "colour-science>=0.4.4" scipy "mitsuba>=3.9,<3.10" "ruff==0.17.6"
 
 rust-test:
 	cargo test --release
@@ -57,6 +57,7 @@ test: lint rust-test py-test
 bench: develop test-deps
 	$(LLVM) $(VPY) benchmarks/bench_conductor.py
 	$(LLVM) $(VPY) benchmarks/bench_layered.py
+	$(LLVM) $(VPY) benchmarks/bench_sampling.py
 	$(VPY) benchmarks/bench_reference.py
 
 # Regenerates docs/validation.md from measurements against Mitsuba 3 and colour-science.

@@ -64,6 +64,22 @@ def numpy_conductor(wi, wo):
     return geo[:, None] * 0.5 * (rs + rp)
 
 
+def mitsuba_conductor():
+    """Mitsuba 3's `roughconductor` (llvm_ad_rgb, GGX, α = ALPHA, the RGB complex IOR ETA + iK): the peer."""
+    import mitsuba as mi
+
+    mi.set_variant("llvm_ad_rgb")
+    return mi.load_dict(
+        {
+            "type": "roughconductor",
+            "distribution": "ggx",
+            "alpha": ALPHA,
+            "eta": {"type": "rgb", "value": list(ETA)},
+            "k": {"type": "rgb", "value": list(K)},
+        }
+    )
+
+
 def main() -> None:
     rng = np.random.default_rng(1)
 
@@ -80,16 +96,7 @@ def main() -> None:
     import drjit as dr
     import mitsuba as mi
 
-    mi.set_variant("llvm_ad_rgb")
-    bsdf = mi.load_dict(
-        {
-            "type": "roughconductor",
-            "distribution": "ggx",
-            "alpha": ALPHA,
-            "eta": {"type": "rgb", "value": list(ETA)},
-            "k": {"type": "rgb", "value": list(K)},
-        }
-    )
+    bsdf = mitsuba_conductor()
     ctx = mi.BSDFContext()
 
     def mitsuba_eval():

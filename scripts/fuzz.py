@@ -149,6 +149,16 @@ def fuzz_model(model: str, pairs: float, seed: int) -> list[dict]:
                 counts["nan"] += int(np.isnan(f).any(axis=-1).sum())
                 counts["inf"] += int(np.isinf(f).any(axis=-1).sum())
                 counts["negative"] += int((f < 0).any(axis=-1).sum())
+                bad = ~np.isfinite(f).all(axis=-1) | (f < 0).any(axis=-1)
+                if bad.any() and "example" not in counts:  # the first failure, to reproduce it
+                    k = int(np.argmax(bad))
+                    counts["example"] = dict(
+                        stack=repr(stack),
+                        dtype=np.dtype(dtype).name,
+                        wi=wi[k].tolist(),
+                        wo=wo[k].tolist(),
+                        f=f[k].tolist(),
+                    )
         options = ", ".join(f"{k}={v!r}" for k, v in opts.items()) or "defaults"
         rows.append(dict(model=model, options=options, seconds=round(time.perf_counter() - start, 1), **counts))
         print(f"{model:16s} {options:40s} {counts}", flush=True)

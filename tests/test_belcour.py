@@ -7,7 +7,7 @@ import lamina
 import numpy as np
 import pytest
 from conftest import random_hemisphere
-from hypothesis import given, settings
+from hypothesis import example, given, settings
 from hypothesis import strategies as st
 
 
@@ -82,22 +82,20 @@ def test_total_internal_reflection_layers_stay_finite():
 
 @settings(max_examples=15, deadline=None)
 @given(isotropic_stacks, st.floats(0.0, 89.0), st.sampled_from(["off", "transmittance", "fraction"]))
+@example(lamina.Stack([lamina.Dielectric(1.001, 0.25), lamina.Conductor(0.3, 0.0, 0.0)]), 1.21875, "off")
 def test_view_albedo_at_most_one(stack, theta, tir):
     """The statistics follow the viewing direction wo (Belcour's reference code), so the model conserves energy for
-    a fixed view: ∫ f(wi, wo) cos θi dωi plus the delta reflection of a smooth top (its lobe-0 energy) <= 1.
-    (The light albedo ∫ f cos θo dωo can exceed 1 at grazing incidence: docs/validation.md.) 1e-3: quadrature."""
+    a fixed view: ∫ f(wi, wo) cos θi dωi plus the delta reflection of a smooth top (`specular`) <= 1. (The light
+    albedo ∫ f cos θo dωo can exceed 1 at grazing incidence: docs/validation.md.) The integral is estimated by the
+    model's own importance sampling (mean weight, 4 standard errors): a quadrature grid cannot resolve the near-Dirac
+    lobes (α ~ 4e-4) that a rough coat over a smooth base produces at grazing views."""
     t = np.radians(theta)
     wo = np.array([np.sin(t), 0.0, np.cos(t)])
-    nt, npp = 256, 512
-    ti = (np.arange(nt) + 0.5) * (np.pi / 2 / nt)
-    p = (np.arange(npp) + 0.5) * (2 * np.pi / npp)
-    T, P = np.meshgrid(ti, p, indexing="ij")
-    wi = np.stack([np.sin(T) * np.cos(P), np.sin(T) * np.sin(P), np.cos(T)], -1)
-    w = (np.cos(T) * np.sin(T))[..., None] * (np.pi / 2 / nt) * (2 * np.pi / npp)
-    view_albedo = np.sum(stack.eval(wi, wo, "belcour", tir=tir) * w, axis=(0, 1))
-    lobes = stack.lobes(wo)
-    delta = lobes["energy"][0] if np.all(lobes["roughness"][0] == 0) else 0.0
-    assert np.all(view_albedo + delta <= 1 + 1e-3), (view_albedo, delta)
+    u = np.random.default_rng(int(theta * 1000)).random((200_000, 3))
+    _, weight, _ = stack.sample(wo, u, "belcour", tir=tir)
+    view_albedo, se = weight.mean(axis=0), weight.std(axis=0) / np.sqrt(len(u))
+    delta = stack.specular(wo, "belcour", tir=tir)
+    assert np.all(view_albedo + delta <= 1 + 4 * se + 1e-12), (view_albedo, se, delta)
 
 
 def test_variant_options():

@@ -173,6 +173,17 @@ def test_known_edge_cases_are_finite_and_zero_where_promised():
         [0, 0, 1.0], [1.0, 0, 1e-300], "weidlich_wilkie", fresnel="lazanyi"
     )
     assert np.all(ww >= 0)
+    # An index-matched conductor (η = 1, κ = 0: F = 0) at grazing cosines (was NaN and −1e-10 in the fuzz).
+    matched = Stack([Conductor(1.0, 0.0, (0.3, 1e-6))])
+    wi, wo = np.array([[0.2, -0.2, 2e-323], [0.5, 0.6, 0.4]]), np.array([[-0.16, -0.23, 0.36], [-0.5, -0.6, 0.4]])
+    for model, opts in [
+        ("microfacet", {"distribution": "beckmann"}),
+        ("microfacet", {"g2": "separable"}),
+        ("steinberg", {"lut": "fitted"}),
+        ("weidlich_wilkie", {"precomputed": True}),
+    ]:
+        f = matched.eval(wi, wo, model, **opts)
+        assert np.all(np.isfinite(f)) and np.all(f >= 0), (model, opts, f)
 
 
 def test_empty_wavelengths_and_zero_rows_name_the_parameter():

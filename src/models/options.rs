@@ -84,7 +84,8 @@ impl Default for Options {
     }
 }
 
-const fn choice(
+/// A choice among strings.
+pub const fn choice(
     name: &'static str,
     choices: &'static [&'static str],
     default: &'static str,
@@ -93,7 +94,8 @@ const fn choice(
     OptionSpec { name, kind: OptionKind::Choice { choices, default }, doc }
 }
 
-const fn flag(name: &'static str, default: bool, doc: &'static str) -> OptionSpec {
+/// A flag.
+pub const fn flag(name: &'static str, default: bool, doc: &'static str) -> OptionSpec {
     OptionSpec { name, kind: OptionKind::Flag { default }, doc }
 }
 

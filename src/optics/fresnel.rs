@@ -28,10 +28,13 @@ pub fn conductor(cos_i: f64, eta: f64, k: f64) -> f64 {
     let t0 = eta * eta - k * k - sin2;
     let a2b2 = (t0 * t0 + 4.0 * eta * eta * k * k).sqrt();
     let a = (0.5 * (a2b2 + t0)).max(0.0).sqrt();
-    let r_s = (a2b2 - 2.0 * a * cos_i + cos2) / (a2b2 + 2.0 * a * cos_i + cos2);
+    // Both ratios are ((a ∓ cos)² + b²)-like, ≥ 0: clamped so that rounding (e.g. η = 1, κ = 0, where F = 0) cannot
+    // make them negative; a vanishing denominator (grazing incidence on η = 1, κ = 0) is the grazing limit 1.
+    let den_s = a2b2 + 2.0 * a * cos_i + cos2;
+    let r_s = if den_s > 0.0 { ((a2b2 - 2.0 * a * cos_i + cos2) / den_s).max(0.0) } else { 1.0 };
     let num = cos2 * a2b2 - 2.0 * a * cos_i * sin2 + sin2 * sin2;
     let den = cos2 * a2b2 + 2.0 * a * cos_i * sin2 + sin2 * sin2;
-    let r_p = if den > 0.0 { r_s * num / den } else { r_s };
+    let r_p = if den > 0.0 { (r_s * num / den).max(0.0) } else { r_s };
     0.5 * (r_s + r_p)
 }
 

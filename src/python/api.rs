@@ -139,6 +139,28 @@ fn given_inputs<'a, 'py>(
     Ok((arrays, slot, info))
 }
 
+/// The prepared model, the stack's channel count, and every input array: the two given first (directions or
+/// uniform numbers), then the model's per-element inputs with, for each of the model's inputs, its array's index.
+type Call<'a, 'py> = (Arc<dyn models::Model>, usize, Vec<(&'a str, &'a Bound<'py, PyAny>, Kind)>, Vec<Option<usize>>);
+
+#[allow(clippy::too_many_arguments)]
+fn call<'a, 'py>(
+    layers: &Bound<'py, PyList>,
+    ext_ior: f64,
+    model: &str,
+    first: [(&'a str, &'a Bound<'py, PyAny>, Kind); 2],
+    options: Option<&Bound<'py, PyDict>>,
+    inputs: Option<&Bound<'py, PyDict>>,
+    arrays: &'a mut Vec<(String, Bound<'py, PyAny>, Kind)>,
+) -> PyResult<Call<'a, 'py>> {
+    let (stack, p, info) = prepared(layers, ext_ior, model, options)?;
+    let (given, slot, _) = given_inputs(info, &*p, inputs, 2)?;
+    *arrays = given;
+    let mut all = first.to_vec();
+    all.extend(arrays.iter().map(|(n, a, k)| (n.as_str(), a, *k)));
+    Ok((p, stack.channels, all, slot))
+}
+
 /// The catalogue: one dict per model (name, summary, options, inputs, properties).
 #[pyfunction]
 #[pyo3(name = "models")]
@@ -212,11 +234,10 @@ pub fn eval<'py>(
     options: Option<&Bound<'py, PyDict>>,
     inputs: Option<&Bound<'py, PyDict>>,
 ) -> PyResult<Bound<'py, PyAny>> {
-    let (stack, p, info) = prepared(layers, ext_ior, model, options)?;
-    let (arrays, slot, _) = given_inputs(info, &*p, inputs, 2)?;
-    let mut all = vec![("wi", wi, Kind::Direction), ("wo", wo, Kind::Direction)];
-    all.extend(arrays.iter().map(|(n, a, k)| (n.as_str(), a, *k)));
-    batch_blocks(py, &all, stack.channels, |b, o| {
+    let mut arrays = Vec::new();
+    let dirs = [("wi", wi, Kind::Direction), ("wo", wo, Kind::Direction)];
+    let (p, channels, all, slot) = call(layers, ext_ior, model, dirs, options, inputs, &mut arrays)?;
+    batch_blocks(py, &all, channels, |b, o| {
         let mut cols: [Option<[&[f64]; 3]>; MAX_INPUTS] = [None; MAX_INPUTS];
         for (c, s) in cols.iter_mut().zip(&slot) {
             *c = s.map(|k| b.columns(k));
@@ -240,11 +261,9 @@ pub fn sample_stack<'py>(
     options: Option<&Bound<'py, PyDict>>,
     inputs: Option<&Bound<'py, PyDict>>,
 ) -> PyResult<Bound<'py, PyAny>> {
-    let (stack, p, info) = prepared(layers, ext_ior, model, options)?;
-    let (arrays, slot, _) = given_inputs(info, &*p, inputs, 2)?;
-    let mut all = vec![("wo", wo, Kind::Direction), ("u", u, Kind::Range(3, 0.0, 1.0))];
-    all.extend(arrays.iter().map(|(n, a, k)| (n.as_str(), a, *k)));
-    let c = stack.channels;
+    let mut arrays = Vec::new();
+    let first = [("wo", wo, Kind::Direction), ("u", u, Kind::Range(3, 0.0, 1.0))];
+    let (p, c, all, slot) = call(layers, ext_ior, model, first, options, inputs, &mut arrays)?;
     batch(py, &all, 3 + c + 1, |r, o| {
         let wo = vec3(&r[0]);
         let (wi, pdf) = sample::sample(&*p, wo, r[1]);

@@ -41,8 +41,8 @@ mod table;
 pub use adding::{Tir, Variant};
 pub use cov::{alpha_from_variance, hg_variance, variance_from_alpha, Cov, Lobe};
 
-use super::options::G2;
-use super::{InputSpec, Inputs, Model, ModelInfo, OptionKind, OptionSpec, Options, Properties, Proposal};
+use super::options::{choice, flag, G2};
+use super::{InputSpec, Inputs, Model, ModelInfo, OptionSpec, Options, Properties, Proposal};
 use crate::bsdf;
 use crate::error::{value_error, Result};
 use crate::optics::distribution::{Distribution, G2Form, Microfacet};
@@ -52,34 +52,17 @@ use glam::DVec3;
 use std::f64::consts::FRAC_1_PI;
 use table::{azimuth, LobeTable};
 
-const fn choice(
-    name: &'static str,
-    choices: &'static [&'static str],
-    default: &'static str,
-    doc: &'static str,
-) -> OptionSpec {
-    OptionSpec { name, kind: OptionKind::Choice { choices, default }, doc }
-}
-
 pub const INFO: ModelInfo = ModelInfo {
     name: "belcour",
     summary: "Belcour 2018 adding-doubling of lobe statistics, with Yamaguchi et al. 2019's anisotropic covariances",
     options: &[
         G2,
-        OptionSpec {
-            name: "symmetric",
-            kind: OptionKind::Flag { default: false },
-            doc: "statistics at |wo·h| instead of cos θo (Belcour §6): a reciprocal BRDF",
-        },
+        flag("symmetric", false, "statistics at |wo·h| instead of cos θo (Belcour §6): a reciprocal BRDF"),
         choice("cosines", &["frozen", "real"], "frozen", "transmission scale with cosines frozen at normal incidence (code) or the real ones (paper: exact Jacobians at the lobe mean)"),
         choice("jacobian", &["j12", "j21"], "j12", "Jacobian in the transmitted and back-reflected variance terms: j12 (code) or j21 (paper)"),
         choice("energy", &["fgd", "fresnel"], "fgd", "lobe energies from the FGD table or the exact Fresnel at the mean cosine"),
         choice("tir", &["off", "transmittance", "fraction"], "off", "the reference code's TIR step: off, its table (repeats the Fresnel factor) or the totally reflected fraction"),
-        OptionSpec {
-            name: "tabulated",
-            kind: OptionKind::Flag { default: true },
-            doc: "interpolate the adding-doubling from a table over the viewing direction, built once per stack",
-        },
+        flag("tabulated", true, "interpolate the adding-doubling from a table over the viewing direction, built once per stack"),
     ] as &[OptionSpec],
     inputs: &[] as &[InputSpec],
     properties: Properties { reciprocal: false, energy_conserving: false, anisotropic: true, spectral: true },
