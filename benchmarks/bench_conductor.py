@@ -1,17 +1,21 @@
 """Throughput of lamina's rough conductor against Mitsuba 3 `llvm_ad_rgb` `roughconductor` and a NumPy
-implementation of the same formula, on the same random (wi, wo) pairs, measured in one run.
+implementation of the same formula, on the same random (wi, wo) pairs, measured in one process, at 1 and 2 threads.
 
-Both sides include the conversions from and to NumPy (lamina: broadcasting, validation, gather, output array;
-Mitsuba: numpy -> Dr.Jit arrays, kernel launch, Dr.Jit -> numpy). Each timing is the median of REPEATS runs after one
-warm-up call (Mitsuba's first call also JIT-compiles its kernel; that cold time is reported separately).
-Writes docs/benchmarks.md. Run: make bench   (not a test: no timing is ever asserted)
+Each side is timed as its users call it. lamina: `Stack.eval` on NumPy arrays, everything included (broadcasting,
+validation, gather, the output array). Mitsuba: `np.array(bsdf.eval(ctx, si, wo))` and nothing else, its inputs
+built once as Dr.Jit arrays; it returns f·cos θ, lamina f: each its own natural quantity, nothing is charged to the
+peer. The implementations alternate round-robin; each figure is the median of REPEATS runs after a cold call, with
+the quartiles. Thread scaling: each thread count runs in a process of its own (RAYON_NUM_THREADS for lamina,
+dr.set_thread_count for Mitsuba). Writes the "conductor" section of docs/benchmarks.md.
+Run: make bench   (not a test: no timing is ever asserted)
 """
 
 from __future__ import annotations
 
+import json
 import os
 import platform
-import statistics
+import subprocess
 import sys
 import time
 
@@ -20,8 +24,9 @@ import numpy as np
 from docs_section import write_section
 
 N = int(os.environ.get("LAMINA_BENCH_N", 1_000_000))
-REPEATS = 11
+REPEATS = 15
 ETA, K, ALPHA = (0.2, 0.45, 1.4), (3.6, 2.5, 1.9), 0.3
+MITSUBA = "Mitsuba 3 llvm_ad_rgb roughconductor (float32)"
 
 
 def timed(fn) -> float:
@@ -30,15 +35,41 @@ def timed(fn) -> float:
     return time.perf_counter() - t0
 
 
-def measure(fns: dict) -> dict:
-    """{name: (median, first call)}: one cold call each, then REPEATS rounds that time every implementation in turn
-    (round-robin), so that machine noise falls on all of them alike."""
+def measure_all(fns: dict, repeats: int = REPEATS) -> dict:
+    """{name: (every time, first call)}: one cold call each, then `repeats` rounds that time every implementation
+    in turn (round-robin), so that machine noise falls on all of them alike."""
     cold = {name: timed(fn) for name, fn in fns.items()}
     times = {name: [] for name in fns}
-    for _ in range(REPEATS):
+    for _ in range(repeats):
         for name, fn in fns.items():
             times[name].append(timed(fn))
-    return {name: (statistics.median(times[name]), cold[name]) for name in fns}
+    return {name: (times[name], cold[name]) for name in fns}
+
+
+def measure(fns: dict) -> dict:
+    """{name: (median, first call)} of `measure_all`."""
+    return {name: (float(np.median(t)), cold) for name, (t, cold) in measure_all(fns).items()}
+
+
+def hemisphere(rng, n: int) -> np.ndarray:
+    """n random directions above the surface (cos θ in [0.05, 1])."""
+    z = rng.uniform(0.05, 1, n)
+    p = rng.uniform(0, 2 * np.pi, n)
+    s = np.sqrt(1 - z * z)
+    return np.stack([s * np.cos(p), s * np.sin(p), z], -1)
+
+
+def mitsuba_eval(bsdf, wi: np.ndarray, wo: np.ndarray):
+    """Mitsuba's eval as its users call it: inputs built once as Dr.Jit arrays (wo as si.wi), then a closure that
+    returns `np.array(bsdf.eval(ctx, si, wi))`: f·cos θi, shape (3, n)."""
+    import drjit as dr
+    import mitsuba as mi
+
+    ctx = mi.BSDFContext()
+    si = dr.zeros(mi.SurfaceInteraction3f, len(wo))
+    si.wi = mi.Vector3f(np.ascontiguousarray(wo.T, dtype=np.float32))
+    w = mi.Vector3f(np.ascontiguousarray(wi.T, dtype=np.float32))
+    return lambda: np.array(bsdf.eval(ctx, si, w))
 
 
 def numpy_conductor(wi, wo):
@@ -80,82 +111,89 @@ def mitsuba_conductor():
     )
 
 
-def main() -> None:
+def worker(threads: int) -> dict:
+    """Every implementation's times in this process, at `threads` threads."""
+    import drjit as dr
+
+    dr.set_thread_count(threads)
     rng = np.random.default_rng(1)
-
-    def hemi(n):
-        z = rng.uniform(0.05, 1, n)
-        p = rng.uniform(0, 2 * np.pi, n)
-        s = np.sqrt(1 - z * z)
-        return np.stack([s * np.cos(p), s * np.sin(p), z], -1)
-
-    wi64, wo64 = hemi(N), hemi(N)
+    wi64, wo64 = hemisphere(rng, N), hemisphere(rng, N)
     wi32, wo32 = wi64.astype(np.float32), wo64.astype(np.float32)
     stack = lamina.Stack([lamina.Conductor(ETA, K, ALPHA)])
+    fns = {
+        "lamina float32 in/out": lambda: stack.eval(wi32, wo32, g2="separable"),
+        "lamina float64 in/out": lambda: stack.eval(wi64, wo64, g2="separable"),
+        "lamina float32, fresnel='schlick'": lambda: stack.eval(wi32, wo32, g2="separable", fresnel="schlick"),
+        MITSUBA: mitsuba_eval(mitsuba_conductor(), wi32, wo32),
+    }
+    if threads == 1:
+        fns["NumPy float64 (one thread)"] = lambda: numpy_conductor(wi64, wo64)
+    rows = measure_all(fns)
+    # Same answers before any figure is reported: Mitsuba's f·cos θi divided by cos θi here, outside its timing.
+    a, b = stack.eval(wi64, wo64, g2="separable"), fns[MITSUBA]().T / wi32[:, 2:3]
+    big = a > 1e-3 * a.max()
+    schlick = stack.eval(wi64, wo64, g2="separable", fresnel="schlick")
+    return {
+        "rows": {name: {"times": t, "cold": cold} for name, (t, cold) in rows.items()},
+        "agreement": float(np.max(np.abs(a[big] - b[big]) / a[big])),
+        "schlick": float(np.max(np.abs(schlick[big] - a[big]) / a[big])),
+    }
 
-    import drjit as dr
+
+def main() -> None:
+    if len(sys.argv) == 3 and sys.argv[1] == "--worker":
+        print(json.dumps(worker(int(sys.argv[2]))))
+        return
+    runs = {}
+    for threads in (1, 2):
+        env = {**os.environ, "RAYON_NUM_THREADS": str(threads)}
+        out = subprocess.run(
+            [sys.executable, __file__, "--worker", str(threads)], env=env, capture_output=True, text=True, check=True
+        )
+        runs[threads] = json.loads(out.stdout.strip().splitlines()[-1])
     import mitsuba as mi
 
-    bsdf = mitsuba_conductor()
-    ctx = mi.BSDFContext()
-
-    def mitsuba_eval():
-        si = dr.zeros(mi.SurfaceInteraction3f, N)
-        si.wi = mi.Vector3f(np.ascontiguousarray(wo32.T))
-        value = bsdf.eval(ctx, si, mi.Vector3f(np.ascontiguousarray(wi32.T)))
-        return np.array(value).T / wi32[:, 2:3]
-
-    rows = measure(
-        {
-            "lamina float32 in/out": lambda: stack.eval(wi32, wo32, g2="separable"),
-            "lamina float64 in/out": lambda: stack.eval(wi64, wo64, g2="separable"),
-            "lamina float32, fresnel='schlick'": lambda: stack.eval(wi32, wo32, g2="separable", fresnel="schlick"),
-            "NumPy float64": lambda: numpy_conductor(wi64, wo64),
-            "Mitsuba 3 llvm_ad_rgb (float32)": mitsuba_eval,
-        }
-    )
-    # Same answers (to float32) before any figure is reported.
-    a, b = stack.eval(wi64, wo64, g2="separable"), mitsuba_eval()
-    big = a > 1e-3 * a.max()
-    agreement = float(np.max(np.abs(a[big] - b[big]) / a[big]))
-    schlick = stack.eval(wi64, wo64, g2="separable", fresnel="schlick")
-    schlick_err = float(np.max(np.abs(schlick[big] - a[big]) / a[big]))
-
-    mitsuba_t = rows["Mitsuba 3 llvm_ad_rgb (float32)"][0]
     cpu = next((ln.split(":", 1)[1].strip() for ln in open("/proc/cpuinfo") if ln.startswith("model name")), "?")
+    two = runs[2]
     lines = [
         "## Rough conductor: lamina vs Mitsuba 3 `roughconductor` and NumPy",
         "",
         "Generated by `benchmarks/bench_conductor.py` (`make bench`); do not edit by hand. Ratios > 1 mean lamina is "
         "faster. No benchmark is a test: timings are never asserted.",
         "",
-        f"{N:,} random (wi, wo) pairs, GGX alpha = {ALPHA}, RGB complex IOR, separable Smith (Mitsuba's formula); "
-        "conversions from and to NumPy included on every side; median of "
-        f"{REPEATS} round-robin runs after a cold call. Largest relative difference lamina vs Mitsuba on these pairs "
-        f"(values above 1e-3 of the peak): {agreement:.1e}. Schlick's Fresnel instead of the exact conductor Fresnel "
-        f"changes f by up to {schlick_err:.1%} on the same pairs.",
+        f"{N:,} random (wi, wo) pairs, GGX alpha = {ALPHA}, RGB complex IOR, separable Smith (Mitsuba's formula). "
+        "lamina: `Stack.eval` on NumPy arrays, every conversion included. Mitsuba: `np.array(bsdf.eval(ctx, si, wo))` "
+        "and nothing else (inputs built once as Dr.Jit arrays); it returns f·cos θ, lamina f, each its own quantity. "
+        f"Median of {REPEATS} round-robin runs after a cold call, with the quartiles; each thread count in a process "
+        "of its own. Largest relative difference lamina vs Mitsuba on these pairs (values above 1e-3 of the peak): "
+        f"{two['agreement']:.1e}. Schlick's Fresnel instead of the exact conductor Fresnel changes f by up to "
+        f"{two['schlick']:.1%} on the same pairs.",
         "",
-        "| implementation | median time (s) | first call (s) | evaluations/s | ratio lamina-f32 / this |",
-        "|---|---:|---:|---:|---:|",
+        "| implementation | threads | median time (s) | quartiles (s) | first call (s) | evaluations/s | "
+        "ratio to Mitsuba |",
+        "|---|---:|---:|---|---:|---:|---:|",
     ]
-    ours = rows["lamina float32 in/out"][0]
-    for name, (t, cold) in rows.items():
-        lines.append(f"| {name} | {t:.4f} | {cold:.4f} | {N / t:,.0f} | {t / ours:.2f}x |")
+    for threads, run in runs.items():
+        mitsuba_t = float(np.median(run["rows"][MITSUBA]["times"]))
+        for name, r in run["rows"].items():
+            t = float(np.median(r["times"]))
+            q1, q3 = np.percentile(r["times"], [25, 75])
+            lines.append(
+                f"| {name} | {threads} | {t:.4f} | {q1:.4f}–{q3:.4f} | {r['cold']:.4f} | {N / t:,.0f} | "
+                f"{mitsuba_t / t:.2f}x |"
+            )
+    ratio = {
+        th: float(np.median(run["rows"][MITSUBA]["times"]) / np.median(run["rows"]["lamina float32 in/out"]["times"]))
+        for th, run in runs.items()
+    }
     lines += [
         "",
-        f"**lamina (float32) / Mitsuba 3 llvm_ad_rgb throughput ratio: {mitsuba_t / ours:.2f}x** "
-        f"(float64: {mitsuba_t / rows['lamina float64 in/out'][0]:.2f}x).",
-        "",
-        "Where the time goes (measured with perf while writing this benchmark): lamina evaluates blocks of 64 rows "
-        "in float64, as passes that the compiler vectorizes (AVX2, 4 lanes, chosen at run time): gather, "
-        "validation and normalisation of the inputs, the GGX geometry (D, Smith G2), then the exact conductor "
-        "Fresnel per channel (two square roots and three divisions); Beckmann and the V-cavity G stay scalar. "
-        "Mitsuba's LLVM backend evaluates 8 float32 lanes per AVX2 instruction. Each call also allocates its output "
-        "array, and first-touch page faults cost ~3 µs per 4 KiB page on this VM, which both sides pay.",
+        f"**lamina (float32) / Mitsuba 3 llvm_ad_rgb throughput ratio: {ratio[2]:.2f}x at 2 threads, {ratio[1]:.2f}x "
+        f"at 1 thread** (Mitsuba: {N / np.median(two['rows'][MITSUBA]['times']):,.0f} evaluations/s at 2 threads).",
         "",
         f"Machine: {cpu}, {os.cpu_count()} logical cores, Python {platform.python_version()}, NumPy {np.__version__}, "
         f"Mitsuba {mi.__version__}, lamina {lamina.__version__}. "
-        "Mitsuba's first call includes compiling its LLVM kernel.",
+        "Mitsuba's first call includes compiling its LLVM kernel. Where the time goes: the profile section below.",
         "",
     ]
     out = write_section("benchmarks.md", "Benchmarks", "conductor", lines)

@@ -164,21 +164,24 @@ pub fn eval_rows(wi: [&[f64]; 3], wo: [&[f64]; 3], out: &mut [f64], eval: impl F
     }
 }
 
-/// Runs `f` compiled for AVX2 + FMA when the CPU has them (4 f64 lanes in the loops that vectorize), else as is.
+/// The body of a `Model::eval_block` that runs `$p.eval_columns(wi, wo, out)` (an `#[inline(always)]` method of
+/// type `$ty`) compiled for AVX2 + FMA when the CPU has them (4 f64 lanes in the loops that vectorize), else as is.
 /// Rust never contracts a * b + c into an FMA by itself, so both paths give identical bits.
-#[inline(always)]
-pub fn simd<R>(f: impl FnOnce() -> R) -> R {
-    #[cfg(target_arch = "x86_64")]
-    if has_avx2() {
-        #[target_feature(enable = "avx2,fma")]
-        unsafe fn avx2<R>(f: impl FnOnce() -> R) -> R {
-            f()
+macro_rules! simd_columns {
+    ($ty:ty, $p:expr, $wi:expr, $wo:expr, $out:expr) => {{
+        #[cfg(target_arch = "x86_64")]
+        if $crate::models::has_avx2() {
+            #[target_feature(enable = "avx2,fma")]
+            unsafe fn avx2(p: &$ty, wi: [&[f64]; 3], wo: [&[f64]; 3], out: &mut [f64]) {
+                p.eval_columns(wi, wo, out)
+            }
+            // SAFETY: the CPU supports every feature the function is compiled for.
+            return unsafe { avx2($p, $wi, $wo, $out) };
         }
-        // SAFETY: the CPU supports every feature the function is compiled for.
-        return unsafe { avx2(f) };
-    }
-    f()
+        $p.eval_columns($wi, $wo, $out)
+    }};
 }
+pub(crate) use simd_columns;
 
 /// Whether the CPU has AVX2 and FMA (checked once, then cached by std).
 #[cfg(target_arch = "x86_64")]

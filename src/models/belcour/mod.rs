@@ -135,7 +135,7 @@ pub fn prepare(stack: &Stack, opts: &Options) -> Result<Prepared> {
 
 impl Model for Prepared {
     fn eval_block(&self, wi: [&[f64]; 3], wo: [&[f64]; 3], _: &Inputs, out: &mut [f64]) {
-        super::simd(|| self.eval_columns(wi, wo, out))
+        super::simd_columns!(Prepared, self, wi, wo, out)
     }
 
     fn proposals(&self, wo: DVec3) -> Vec<(f64, Proposal)> {
