@@ -55,10 +55,15 @@ py-test: develop test-deps
 test: lint rust-test py-test
 
 bench: develop test-deps
+	@if [ "$$(id -u)" = 0 ] && command -v apt-get >/dev/null && ! command -v perf >/dev/null; then \
+		apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq linux-perf >/dev/null; \
+	fi
 	$(LLVM) $(VPY) benchmarks/bench_conductor.py
 	$(LLVM) $(VPY) benchmarks/bench_layered.py
 	$(LLVM) $(VPY) benchmarks/bench_sampling.py
 	$(VPY) benchmarks/bench_reference.py
+	$(VPY) benchmarks/bench_memory.py
+	$(VPY) benchmarks/profile.py
 
 # Regenerates docs/validation.md from measurements against Mitsuba 3 and colour-science.
 validation: develop test-deps

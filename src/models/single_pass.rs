@@ -11,10 +11,10 @@
 //! each interface, which both publications omit, is lamina's option `eta2` (on by default: measured in
 //! docs/validation.md).
 
-use super::{Options, Proposal};
-use crate::optics::diffuse;
+use super::{Options, Proposal, BLOCK};
 use crate::optics::distribution::{Distribution, G2Form, Microfacet};
 use crate::optics::fresnel::FresnelForm;
+use crate::optics::{diffuse, sin_theta};
 use crate::sampling::orthonormal_basis;
 use crate::stack::{Layer, Stack};
 use crate::tables::elek::FresnelTable;
@@ -37,6 +37,7 @@ pub struct Interface {
 
 impl Interface {
     /// Fresnel reflectance of channel `c` at cosine `cos_i` in `form`, or from the precomputed table if any.
+    #[inline(always)]
     pub fn fresnel(&self, form: FresnelForm, cos_i: f64, c: usize) -> f64 {
         match self.table.get(c) {
             Some(t) => t.lookup(cos_i),
@@ -106,8 +107,9 @@ pub struct Passage {
 }
 
 /// Direction `w` refracted into a slab and flipped to point up: same azimuth, sine `sin_t`.
+#[inline(always)]
 pub fn refracted_up(w: DVec3, sin_t: f64) -> DVec3 {
-    let r = w.x.hypot(w.y);
+    let r = sin_theta(w);
     let cos_t = (1.0 - sin_t * sin_t).max(0.0).sqrt();
     if r == 0.0 {
         return DVec3::new(0.0, 0.0, cos_t);
@@ -116,6 +118,7 @@ pub fn refracted_up(w: DVec3, sin_t: f64) -> DVec3 {
 }
 
 /// Beer–Lambert transmittance exp(−σ d (1/cos θi + 1/cos θo)) along both refracted directions.
+#[inline(always)]
 pub fn beer_lambert(sigma_t: f64, thickness: f64, wi: DVec3, wo: DVec3) -> f64 {
     if sigma_t * thickness == 0.0 {
         return 1.0;
@@ -174,7 +177,7 @@ impl Walk {
 
     /// f(wi, wo) of `layers` (this walk's, or a per-element variant of them with the same channel structure) for
     /// every channel into `out`; zero below the horizon. `base` holds the base's modifiers per channel (or one for
-    /// all).
+    /// all). A block of one row (`eval_block`).
     pub fn eval(
         &self,
         model: &impl Transport,
@@ -184,12 +187,31 @@ impl Walk {
         base: &[Base],
         out: &mut [f64],
     ) {
+        let tint: Vec<f64> = base.iter().map(|b| b.tint).collect();
+        let normal = base[0].normal.map(|n| [n]);
+        let (wi, wo) = ([&[wi.x][..], &[wi.y], &[wi.z]], [&[wo.x][..], &[wo.y], &[wo.z]]);
+        self.eval_block(model, layers, wi, wo, normal.as_ref().map(|n| &n[..]), &tint, out)
+    }
+
+    /// f for a block of n ≤ BLOCK rows given as columns into `out` (n rows of one value per channel); `normal` tilts
+    /// the base per row (car-paint flakes), `tint` scales the base per channel (or one for all). The walk runs in
+    /// passes over the block, layer by layer: the lobes' geometry per row, their Fresnel terms per channel over the
+    /// whole block, then the passages into the slab below.
+    #[allow(clippy::too_many_arguments)]
+    #[inline(always)]
+    pub fn eval_block(
+        &self,
+        model: &impl Transport,
+        layers: &[SpLayer],
+        wi: [&[f64]; 3],
+        wo: [&[f64]; 3],
+        normal: Option<&[DVec3]>,
+        tint: &[f64],
+        out: &mut [f64],
+    ) {
         out.fill(0.0);
-        if wi.z <= 0.0 || wo.z <= 0.0 {
-            return;
-        }
         for g in &self.groups {
-            self.eval_group(model, layers, wi, wo, g.clone(), base, out);
+            self.eval_group(model, layers, wi, wo, g.clone(), normal, tint, out);
         }
     }
 
@@ -198,70 +220,106 @@ impl Walk {
     /// dielectric interface also carries the radiance compression 1/η² of the exact smooth-coat result
     /// (f = T(θi) T(θo) f_below(θi′, θo′) / η², e.g. Mitsuba's `plastic`), which neither publication has.
     #[allow(clippy::too_many_arguments)]
+    #[inline(always)]
     fn eval_group(
         &self,
         model: &impl Transport,
         layers: &[SpLayer],
-        wi: DVec3,
-        wo: DVec3,
+        wi: [&[f64]; 3],
+        wo: [&[f64]; 3],
         group: std::ops::Range<usize>,
-        base: &[Base],
+        normal: Option<&[DVec3]>,
+        tint: &[f64],
         out: &mut [f64],
     ) {
-        let (mut wi, mut wo) = (wi, wo);
+        let n = wi[0].len();
+        let k = out.len() / n;
         let c0 = group.start;
-        let mut weight = [1.0f64; GROUP];
-        let weight = &mut weight[..group.len()];
+        let mut state = [(DVec3::ZERO, DVec3::ZERO, false); BLOCK];
+        let state = &mut state[..n];
+        for (r, s) in state.iter_mut().enumerate() {
+            let (i, o) = (super::row(wi, r), super::row(wo, r));
+            *s = (i, o, i.z > 0.0 && o.z > 0.0);
+        }
+        let mut weight = [[1.0f64; GROUP]; BLOCK];
+        let weight = &mut weight[..n];
         let channels = || group.clone().zip(0..);
-        let add_lobe =
-            |iface: &Interface, wi: DVec3, wo: DVec3, weight: &[f64], tint: &dyn Fn(usize) -> f64, out: &mut [f64]| {
-                if let Some((geo, cos_h)) = model.lobe(iface, wi, wo) {
-                    for (c, g) in channels() {
-                        out[c] += weight[g] * tint(c) * geo * iface.fresnel(self.fresnel, cos_h, c);
-                    }
-                }
-            };
         for layer in layers {
             match layer {
                 SpLayer::Dielectric { iface, thickness, sigma_t, albedo } => {
-                    add_lobe(iface, wi, wo, weight, &|_| 1.0, out);
-                    let Some(p) = model.passage(iface, wi, wo, c0) else { return };
+                    self.add_lobes(model, iface, state, weight, group.clone(), &|_| 1.0, out);
                     let compression = if self.eta2 { 1.0 / (iface.eta[c0] * iface.eta[c0]) } else { 1.0 };
-                    let through = p.t_light * compression;
-                    for (c, g) in channels() {
-                        let k = beer_lambert(sigma_t[c], *thickness, p.wi, p.wo);
-                        out[c] += weight[g] * through * p.t_view_slab * (1.0 - k) * albedo[c] * FRAC_1_PI;
-                        weight[g] *= through * p.t_view * k;
-                    }
-                    (wi, wo) = (p.wi, p.wo);
-                    if weight.iter().all(|w| *w == 0.0) {
-                        return;
+                    for (r, (wi, wo, alive)) in state.iter_mut().enumerate().filter(|(_, s)| s.2) {
+                        let Some(p) = model.passage(iface, *wi, *wo, c0) else {
+                            *alive = false;
+                            continue;
+                        };
+                        let through = p.t_light * compression;
+                        let o = &mut out[r * k..][..k];
+                        for (c, g) in channels() {
+                            let a = beer_lambert(sigma_t[c], *thickness, p.wi, p.wo);
+                            o[c] += weight[r][g] * through * p.t_view_slab * (1.0 - a) * albedo[c] * FRAC_1_PI;
+                            weight[r][g] *= through * p.t_view * a;
+                        }
+                        (*wi, *wo) = (p.wi, p.wo);
+                        *alive = weight[r][..group.len()].iter().any(|w| *w != 0.0);
                     }
                 }
                 opaque => {
-                    let tint = |c: usize| base[c.min(base.len() - 1)].tint;
-                    let (wi, wo) = match base[0].normal {
-                        Some(n) => {
+                    let tint = |c: usize| tint[c.min(tint.len() - 1)];
+                    if let Some(normals) = normal {
+                        for (s, &n) in state.iter_mut().zip(normals) {
                             let (t, b) = orthonormal_basis(n);
                             let local = |w: DVec3| DVec3::new(w.dot(t), w.dot(b), w.dot(n));
-                            (local(wi), local(wo))
+                            let (wi, wo) = (local(s.0), local(s.1));
+                            // Below a tilted base normal's horizon the base returns nothing.
+                            *s = (wi, wo, s.2 && wi.z > 0.0 && wo.z > 0.0);
                         }
-                        None => (wi, wo),
-                    };
-                    if wi.z <= 0.0 || wo.z <= 0.0 {
-                        return; // below a tilted base normal's horizon: the base returns nothing
                     }
                     match opaque {
-                        SpLayer::Conductor(iface) => add_lobe(iface, wi, wo, weight, &tint, out),
+                        SpLayer::Conductor(iface) => {
+                            self.add_lobes(model, iface, state, weight, group.clone(), &tint, out)
+                        }
                         SpLayer::Diffuse { albedo, sigma } => {
-                            let shape = diffuse::oren_nayar_shape(*sigma, wi, wo);
-                            for (c, g) in channels() {
-                                out[c] += weight[g] * tint(c) * albedo[c] * shape;
+                            for (r, (wi, wo, _)) in state.iter().enumerate().filter(|(_, s)| s.2) {
+                                let shape = diffuse::oren_nayar_shape(*sigma, *wi, *wo);
+                                for (c, g) in channels() {
+                                    out[r * k + c] += weight[r][g] * tint(c) * albedo[c] * shape;
+                                }
                             }
                         }
                         SpLayer::Dielectric { .. } => unreachable!(),
                     }
                 }
+            }
+        }
+    }
+
+    /// Adds an interface's lobe at every live row's directions, weighted by the attenuation above and `tint`: its
+    /// geometry per row, then its Fresnel term per channel over the whole block.
+    #[allow(clippy::too_many_arguments)]
+    #[inline(always)]
+    fn add_lobes(
+        &self,
+        model: &impl Transport,
+        iface: &Interface,
+        state: &[(DVec3, DVec3, bool)],
+        weight: &[[f64; GROUP]],
+        group: std::ops::Range<usize>,
+        tint: &dyn Fn(usize) -> f64,
+        out: &mut [f64],
+    ) {
+        let n = state.len();
+        let k = out.len() / n;
+        let (mut geo, mut cos_h) = ([0.0; BLOCK], [0.0; BLOCK]);
+        for (r, &(wi, wo, alive)) in state.iter().enumerate() {
+            let (g, c) = model.lobe(iface, wi, wo).unwrap_or((0.0, 0.0));
+            (geo[r], cos_h[r]) = if alive { (g, c) } else { (0.0, 0.0) };
+        }
+        for (c, g) in group.zip(0..) {
+            let t = tint(c);
+            for r in 0..n {
+                out[r * k + c] += weight[r][g] * t * geo[r] * iface.fresnel(self.fresnel, cos_h[r], c);
             }
         }
     }

@@ -19,7 +19,7 @@
 //! The distribution is GGX (the tables are GGX). Sampling: the shared single-pass mixture (models/single_pass.rs).
 
 use super::options::{CLAMP_ROUGHNESS, ETA2, FRESNEL, G2};
-use super::single_pass::{refracted_up, Interface, Passage, SpLayer, Transport, Walk, PLAIN_BASE};
+use super::single_pass::{refracted_up, Interface, Passage, SpLayer, Transport, Walk};
 use super::{InputSpec, Model, ModelInfo, OptionKind, OptionSpec, Options, Properties, Proposal};
 use crate::bsdf;
 use crate::error::{value_error, Result};
@@ -73,11 +73,13 @@ pub fn prepare(stack: &Stack, opts: &Options) -> Result<Prepared> {
 
 impl Transport for Prepared {
     /// Cook–Torrance GGX lobe (Cook & Torrance 1982 with the GGX D and Smith G2 of Walter et al. 2007).
+    #[inline(always)]
     fn lobe(&self, iface: &Interface, wi: DVec3, wo: DVec3) -> Option<(f64, f64)> {
         bsdf::reflection_geometry(&iface.mf, self.walk.g2, wi, wo)
     }
 
     /// t(wo) t(wi) and the mean refracted directions from the tables, at each direction's projected roughness.
+    #[inline(always)]
     fn passage(&self, iface: &Interface, wi: DVec3, wo: DVec3, c: usize) -> Option<Passage> {
         let table = steinberg();
         let lookup = |w: DVec3| {
@@ -99,9 +101,16 @@ impl Transport for Prepared {
     }
 }
 
+impl Prepared {
+    #[inline(always)]
+    fn eval_columns(&self, wi: [&[f64]; 3], wo: [&[f64]; 3], out: &mut [f64]) {
+        self.walk.eval_block(self, &self.walk.layers, wi, wo, None, &[1.0], out)
+    }
+}
+
 impl Model for Prepared {
     fn eval_block(&self, wi: [&[f64]; 3], wo: [&[f64]; 3], _: &super::Inputs, out: &mut [f64]) {
-        super::eval_rows(wi, wo, out, |_, wi, wo, o| self.walk.eval(self, &self.walk.layers, wi, wo, &[PLAIN_BASE], o))
+        super::simd_columns!(Prepared, self, wi, wo, out)
     }
 
     fn proposals(&self, wo: DVec3) -> Vec<(f64, Proposal)> {

@@ -29,10 +29,11 @@
 
 use super::options::{OptionKind, CLAMP_ROUGHNESS, DISTRIBUTIONS, ETA2, FRESNEL, G2_FORMS};
 use super::single_pass::{self, refracted_up, Base, Interface, Passage, SpLayer, Transport, Walk};
-use super::{eval_rows, InputSpec, Inputs, Model, ModelInfo, OptionSpec, Options, Properties, Proposal};
+use super::{eval_rows, InputSpec, Inputs, Model, ModelInfo, OptionSpec, Options, Properties, Proposal, BLOCK};
 use crate::bsdf;
 use crate::error::{value_error, Result};
 use crate::optics::distribution::Distribution;
+use crate::optics::sin_theta;
 use crate::stack::{Layer, Stack};
 use crate::tables::elek::beckmann_table;
 use glam::DVec3;
@@ -118,6 +119,7 @@ pub fn prepare(stack: &Stack, opts: &Options) -> Result<Prepared> {
 impl Transport for Prepared {
     /// Torrance–Sparrow lobe D G / (4 cos θi cos θo); the precomputed variant takes D from Elek's table (isotropic
     /// Beckmann interfaces; others keep the analytic D).
+    #[inline(always)]
     fn lobe(&self, iface: &Interface, wi: DVec3, wo: DVec3) -> Option<(f64, f64)> {
         let (geo, cos_h) = bsdf::reflection_geometry(&iface.mf, self.walk.g2, wi, wo)?;
         let mf = &iface.mf;
@@ -129,9 +131,10 @@ impl Transport for Prepared {
     }
 
     /// Snell's law at the macro-surface; T₁₂ = 1 − F(cos θL) into the layer, t = (1 − G) + T₂₁ G out of it.
+    #[inline(always)]
     fn passage(&self, iface: &Interface, wi: DVec3, wo: DVec3, c: usize) -> Option<Passage> {
         let eta = iface.eta[c];
-        let (sin_i, sin_o) = (wi.x.hypot(wi.y) / eta, wo.x.hypot(wo.y) / eta);
+        let (sin_i, sin_o) = (sin_theta(wi) / eta, sin_theta(wo) / eta);
         if sin_i >= 1.0 || sin_o >= 1.0 {
             return None; // total internal reflection at the macro-surface
         }
@@ -148,25 +151,36 @@ impl Transport for Prepared {
     }
 }
 
+impl Prepared {
+    #[inline(always)]
+    fn eval_columns(&self, wi: [&[f64]; 3], wo: [&[f64]; 3], out: &mut [f64]) {
+        self.walk.eval_block(self, &self.walk.layers, wi, wo, None, &[1.0], out)
+    }
+}
+
 impl Model for Prepared {
     fn eval_block(&self, wi: [&[f64]; 3], wo: [&[f64]; 3], inputs: &Inputs, out: &mut [f64]) {
         let input = |j: usize| inputs.get(j).copied().flatten();
         let (flake, distance, mask) = (input(0), input(1), input(2));
-        eval_rows(wi, wo, out, |r, wi, wo, o| {
-            let normal = flake.map(|f| {
+        if flake.is_none() && mask.is_none() {
+            return super::simd_columns!(Prepared, self, wi, wo, out);
+        }
+        let mut normals = [DVec3::Z; BLOCK];
+        let normals = &mut normals[..wi[0].len()];
+        if let Some(f) = flake {
+            for (r, n) in normals.iter_mut().enumerate() {
                 let d = distance.map_or(1.0, |d| d[0][r]).max(1.0);
-                let n = (DVec3::new(f[0][r], f[1][r], f[2][r]) + d * DVec3::Z).normalize();
-                if n.z > 0.0 {
-                    n
-                } else {
-                    -DVec3::Z
-                } // a base tilted below the horizon reflects nothing
-            });
-            match (mask, &self.patina) {
-                (Some(m), Some(p)) => p.eval(self, wi, wo, m[0][r], normal, o),
-                _ => self.walk.eval(self, &self.walk.layers, wi, wo, &[Base { normal, tint: 1.0 }], o),
+                let m = (DVec3::new(f[0][r], f[1][r], f[2][r]) + d * DVec3::Z).normalize();
+                *n = if m.z > 0.0 { m } else { -DVec3::Z }; // a base tilted below the horizon reflects nothing
             }
-        })
+        }
+        let normal = flake.map(|_| &normals[..]);
+        match (mask, &self.patina) {
+            (Some(m), Some(p)) => {
+                eval_rows(wi, wo, out, |r, wi, wo, o| p.eval(self, wi, wo, m[0][r], normal.map(|n| n[r]), o))
+            }
+            _ => self.walk.eval_block(self, &self.walk.layers, wi, wo, normal, &[1.0], out),
+        }
     }
 
     fn check_inputs(&self, given: &[bool]) -> Result<()> {

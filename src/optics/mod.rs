@@ -14,6 +14,13 @@ pub fn cos_theta(w: DVec3) -> f64 {
     w.z
 }
 
+/// sin θ of a unit direction in the local frame, from its tangent components (√(x² + y²): a unit direction cannot
+/// overflow, so no `hypot`, which is slow).
+#[inline(always)]
+pub fn sin_theta(w: DVec3) -> f64 {
+    (w.x * w.x + w.y * w.y).sqrt()
+}
+
 /// Mirror reflection of `w` about the normal `n` (both unit, pointing away from the surface).
 #[inline]
 pub fn reflect(w: DVec3, n: DVec3) -> DVec3 {

@@ -177,7 +177,7 @@ impl Block {
 const NO_ERROR: usize = usize::MAX;
 
 /// Rows per chunk of a long evaluation: between chunks the GIL is taken back to check for Ctrl-C.
-const CHUNK_ROWS: usize = 1 << 18;
+const CHUNK_ROWS: usize = 1 << 20;
 
 /// Evaluates `kernel` on every block of rows of the (already broadcast) inputs, in parallel with the GIL released,
 /// writing straight into a new NumPy array of shape batch + (out_k,): float32 when every input is float32, else
@@ -330,7 +330,7 @@ impl OutElement for f64 {
 
 impl OutElement for f32 {
     fn from_f64(x: f64) -> Self {
-        x.min(f32::MAX as f64) as f32
+        (if x > f32::MAX as f64 { f32::MAX as f64 } else { x }) as f32
     }
 }
 

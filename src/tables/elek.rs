@@ -13,16 +13,16 @@ pub const FRESNEL_SAMPLES: usize = 128;
 pub const D_SIZE: usize = 512;
 
 /// F(cos θ) sampled at 128 cosines uniform in [0, 1].
-pub struct FresnelTable(Grid<1>);
+pub struct FresnelTable(Grid<1, 1>);
 
 impl FresnelTable {
     pub fn new(f: impl Fn(f64) -> f64) -> Self {
         let data = (0..FRESNEL_SAMPLES).map(|i| f(i as f64 / (FRESNEL_SAMPLES - 1) as f64) as f32).collect();
-        FresnelTable(Grid::new([FRESNEL_SAMPLES], 1, data))
+        FresnelTable(Grid::new([FRESNEL_SAMPLES], data))
     }
 
     pub fn lookup(&self, cos_theta: f64) -> f64 {
-        self.0.value([cos_theta])
+        self.0.lookup([cos_theta])[0]
     }
 }
 
@@ -37,11 +37,11 @@ fn beckmann(cos_h: f64, m: f64) -> f64 {
 }
 
 /// [m][u] with u = cos⁸θh.
-pub struct BeckmannTable(Grid<2>);
+pub struct BeckmannTable(Grid<2, 1>);
 
 impl BeckmannTable {
     pub fn lookup(&self, cos_h: f64, m: f64) -> f64 {
-        self.0.value([m, cos_h.max(0.0).powi(8)])
+        self.0.lookup([m, cos_h.max(0.0).powi(8)])[0]
     }
 }
 
@@ -52,7 +52,7 @@ pub fn beckmann_table() -> &'static BeckmannTable {
         let data = (0..D_SIZE * D_SIZE)
             .map(|k| beckmann(((k % D_SIZE) as f64 * step).powf(1.0 / 8.0), (k / D_SIZE) as f64 * step) as f32)
             .collect();
-        BeckmannTable(Grid::new([D_SIZE, D_SIZE], 1, data))
+        BeckmannTable(Grid::new([D_SIZE, D_SIZE], data))
     })
 }
 

@@ -24,7 +24,7 @@ const QUADRATURE: usize = 256;
 const VERSION: u32 = 1;
 
 pub struct Fgd {
-    grid: Grid<4>,
+    grid: Grid<4, 1>,
 }
 
 fn mu_at(i: usize) -> f64 {
@@ -75,13 +75,13 @@ impl Fgd {
                 out
             })
             .collect();
-        Fgd { grid: Grid::new([N_MU, N_ALPHA, N_ETA, N_KAPPA], 1, cells.concat()) }
+        Fgd { grid: Grid::new([N_MU, N_ALPHA, N_ETA, N_KAPPA], cells.concat()) }
     }
 
     /// Quadrilinear lookup of FGD(μ, α, η, κ).
     pub fn lookup(&self, mu: f64, alpha: f64, eta: f64, kappa: f64) -> f64 {
         let eta = (eta / ETA_MIN).ln() / (ETA_MAX / ETA_MIN).ln();
-        self.grid.value([mu, alpha, eta, (kappa / KAPPA_MAX).max(0.0).sqrt()])
+        self.grid.lookup([mu, alpha, eta, (kappa / KAPPA_MAX).max(0.0).sqrt()])[0]
     }
 }
 
@@ -91,7 +91,7 @@ pub fn fgd() -> &'static Fgd {
     TABLE.get_or_init(|| {
         let name = format!("fgd-v{VERSION}-{N_MU}x{N_ALPHA}x{N_ETA}x{N_KAPPA}.f32");
         let data = super::cached(&name, N_MU * N_ALPHA * N_ETA * N_KAPPA, || Fgd::generate().grid.data().to_vec());
-        Fgd { grid: Grid::new([N_MU, N_ALPHA, N_ETA, N_KAPPA], 1, data) }
+        Fgd { grid: Grid::new([N_MU, N_ALPHA, N_ETA, N_KAPPA], data) }
     })
 }
 

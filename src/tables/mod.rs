@@ -58,50 +58,46 @@ pub fn node(x: f64, n: usize) -> (usize, f64) {
     (i as usize, s - i as f64)
 }
 
-/// Records of `width` f32 values on a regular grid of D axes, each axis spanning [0, 1] in its own coordinate:
-/// the one multilinear interpolation behind every table (FGD, Steinberg, Elek).
-pub struct Grid<const D: usize> {
+/// Records of W f32 values on a regular grid of D axes, each axis spanning [0, 1] in its own coordinate: the one
+/// multilinear interpolation behind every table (FGD, Steinberg, Elek).
+pub struct Grid<const D: usize, const W: usize> {
     dims: [usize; D],
-    width: usize,
+    /// Records between consecutive nodes of each axis.
+    strides: [usize; D],
     data: Vec<f32>,
 }
 
-impl<const D: usize> Grid<D> {
+impl<const D: usize, const W: usize> Grid<D, W> {
     /// `data` holds the records in row-major order of the axes (the last axis fastest).
-    pub fn new(dims: [usize; D], width: usize, data: Vec<f32>) -> Self {
-        assert_eq!(data.len(), dims.iter().product::<usize>() * width, "grid size");
-        Grid { dims, width, data }
+    pub fn new(dims: [usize; D], data: Vec<f32>) -> Self {
+        assert_eq!(data.len(), dims.iter().product::<usize>() * W, "grid size");
+        let strides = std::array::from_fn(|d| dims[d + 1..].iter().product());
+        Grid { dims, strides, data }
     }
 
     pub fn data(&self) -> &[f32] {
         &self.data
     }
 
-    /// The record interpolated at coordinates `x` (each clamped to [0, 1]) into `out` (`width` values).
-    #[inline]
-    pub fn lookup(&self, x: [f64; D], out: &mut [f64]) {
+    /// The record interpolated at coordinates `x` (each clamped to [0, 1]).
+    #[inline(always)]
+    pub fn lookup(&self, x: [f64; D]) -> [f64; W] {
         let corner: [(usize, f64); D] = std::array::from_fn(|d| node(x[d], self.dims[d]));
-        out[..self.width].fill(0.0);
+        let base: usize = corner.iter().zip(&self.strides).map(|(&(i, _), s)| i * s).sum();
+        let mut out = [0.0; W];
         for k in 0..1usize << D {
-            let (mut weight, mut index) = (1.0, 0);
-            for (d, &(i, f)) in corner.iter().enumerate() {
+            let (mut weight, mut index) = (1.0, base);
+            for (d, (&(_, f), stride)) in corner.iter().zip(&self.strides).enumerate() {
                 let bit = (k >> (D - 1 - d)) & 1; // the last axis varies fastest
                 weight *= if bit == 1 { f } else { 1.0 - f };
-                index = index * self.dims[d] + i + bit;
+                index += bit * stride;
             }
             if weight != 0.0 {
-                for (o, &v) in out.iter_mut().zip(&self.data[index * self.width..][..self.width]) {
+                for (o, &v) in out.iter_mut().zip(&self.data[index * W..][..W]) {
                     *o += weight * v as f64;
                 }
             }
         }
-    }
-
-    /// `lookup` of a table of one value per node.
-    #[inline]
-    pub fn value(&self, x: [f64; D]) -> f64 {
-        let mut out = [0.0];
-        self.lookup(x, &mut out);
-        out[0]
+        out
     }
 }

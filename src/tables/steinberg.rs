@@ -86,7 +86,7 @@ pub fn s_model(p: &[f64; S_PARAMS], mu: f64) -> f64 {
 
 pub struct Steinberg {
     /// [μ][α][η][t, s / sin θ, p]
-    table: Grid<3>,
+    table: Grid<3, STRIDE>,
     /// [α][η][a, b, c, d, m, a₁, a₂, b₁, b₂]
     fits: Vec<f32>,
 }
@@ -193,9 +193,7 @@ impl Steinberg {
 
     /// Trilinear interpolation in (μ, α, log η) of the node values [t, s / sin θ, p].
     fn interpolate(&self, mu: f64, alpha: f64, eta: f64) -> [f64; STRIDE] {
-        let mut v = [0.0; STRIDE];
-        self.table.lookup([mu, alpha, eta_coord(eta)], &mut v);
-        v
+        self.table.lookup([mu, alpha, eta_coord(eta)])
     }
 
     /// (t, s) from the table (s through s / sin θ).
@@ -243,7 +241,7 @@ pub fn steinberg() -> &'static Steinberg {
             cached(&format!("steinberg-fit-v{VERSION}-{dims}.f32"), N_ALPHA * N_ETA * (T_PARAMS + S_PARAMS), || {
                 Steinberg::generate_fits(&table)
             });
-        Steinberg { table: Grid::new([N_MU, N_ALPHA, N_ETA], STRIDE, table), fits }
+        Steinberg { table: Grid::new([N_MU, N_ALPHA, N_ETA], table), fits }
     })
 }
 
