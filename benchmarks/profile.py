@@ -54,7 +54,8 @@ def profile(model: str, stack: str, repeats: int) -> list:
     for line in report.splitlines():
         parts = line.split()
         if len(parts) >= 3 and parts[0].endswith("%") and parts[1] == "[.]":
-            rows.append((float(parts[0][:-1]), " ".join(parts[2:]).replace("|", "\\|")))
+            symbol = " ".join(parts[2:]).rstrip(" -")  # perf pads the columns it does not show with "-"
+            rows.append((float(parts[0][:-1]), symbol.replace("|", "\\|")))
     return rows[:TOP]
 
 

@@ -57,7 +57,7 @@ def near_lobe_pairs(rng, n: int, spread: float):
 @pytest.mark.parametrize("roughness", [0.05, 0.3, (0.1, 0.4), (0.6, 0.2)])
 @pytest.mark.parametrize("metal", METALS)
 def test_roughconductor(rng, distribution, roughness, metal):
-    eta, k = (np.asarray(x) for x in lamina.materials.elek2010_rgb(metal))
+    eta, k = (np.asarray(x) for x in lamina.materials.measured_rgb(metal))
     ax, ay = lamina.layers._roughness(roughness)
     wi, wo = near_lobe_pairs(rng, 400, 2 * max(ax, ay))
     ours = lamina.optics.rough_conductor(wi, wo, eta, k, roughness, distribution=distribution, g2="separable")
@@ -81,7 +81,7 @@ def test_roughconductor(rng, distribution, roughness, metal):
 @pytest.mark.parametrize("angle", [0.4, -1.1])
 def test_roughconductor_rotated_tangent_frame(rng, angle):
     """A layer's tangent `angle` equals Mitsuba's unrotated lobe seen from directions rotated by -angle."""
-    eta, k = lamina.materials.elek2010_rgb("Au")
+    eta, k = lamina.materials.measured_rgb("Au")
     wi, wo = near_lobe_pairs(rng, 300, 0.6)
     stack = lamina.Stack([lamina.Conductor(eta, k, roughness=(0.1, 0.45), angle=angle)])
     ours = stack.eval(wi, wo, g2="separable")

@@ -387,3 +387,23 @@ def test_albedo_error_does_not_regress(model, name, suite_reference_albedo):
     albedo = lamina.materials.suite(name).albedo(wi, model)[:, 1]
     err = float(np.abs(albedo - reference).max())
     assert err <= MEASURED_ALBEDO_ERROR[model][name] + 0.01, f"{model} {name}: albedo error {err:.3f}"
+
+
+def test_elek2010_published_constants():
+    """lamina.materials.ELEK2010 holds Elek 2010's Appendix A exactly (the published table, as printed), and the car
+    paint and patina presets are built from it; the measured-table values stay available as MEASURED_RGB."""
+    published = {
+        "Cu": ((0.213, 1.04, 1.17), (4.05, 2.59, 2.36)),
+        "Cr": ((3.84, 3.18, 1.99), (4.37, 4.41, 4.22)),
+        "Cu2O": ((2.83, 3.10, 3.06), (0.083, 0.19, 0.6)),
+    }
+    assert lamina.materials.ELEK2010 == published
+    flakes = lamina.materials.car_paint().layers[-1]
+    assert (flakes.ior, flakes.k) == published["Cr"]
+    p = lamina.materials.patina()
+    assert p.stack.layers[0].ior == published["Cu2O"][0]
+    assert (p.stack.layers[1].ior, p.stack.layers[1].k) == published["Cu"]
+    np.testing.assert_allclose(
+        p.stack.layers[0].sigma_a, 4 * np.pi * np.array(published["Cu2O"][1]) / [0.69, 0.55, 0.45]
+    )
+    assert lamina.materials.MEASURED_RGB["Cu"] == lamina.materials.measured_rgb("Cu") != published["Cu"]

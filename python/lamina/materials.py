@@ -17,16 +17,24 @@ def metal(material: str, roughness: Roughness = 0.1, angle: float = 0.0) -> Cond
     return Conductor(ior=n, k=k, roughness=roughness, angle=angle)
 
 
-def elek2010_rgb(material: str) -> tuple[tuple[float, float, float], tuple[float, float, float]]:
-    """RGB complex IOR (n, k) at Elek 2010's wavelengths 690/550/450 nm, for 'Cu', 'Cr' and 'Cu2O' (and the other
-    shipped metals). Elek's Appendix A numbers were not available to us; these are sampled from the measured tables
-    (sources in python/lamina/data/ior/) at his wavelengths."""
+def measured_rgb(material: str) -> tuple[tuple[float, float, float], tuple[float, float, float]]:
+    """RGB complex IOR (n, k) sampled from the shipped measured table of `material` (one of IOR_MATERIALS; sources
+    in python/lamina/data/ior/) at Elek 2010's wavelengths 690/550/450 nm, rounded to 4 decimals."""
     n, k = ior(material)
     return tuple(n(RGB_WAVELENGTHS).round(4).tolist()), tuple(k(RGB_WAVELENGTHS).round(4).tolist())
 
 
-#: Elek 2010-style RGB presets (n, k) at 690/550/450 nm, see `elek2010_rgb`.
-ELEK2010 = {m: elek2010_rgb(m) for m in ("Cu", "Cr", "Cu2O")}
+#: Elek 2010's published RGB optical constants (Appendix A, "Selected coefficients"): absolute n and κ at 690, 550
+#: and 450 nm of copper, chromium and cuprite, exactly as printed. car_paint() and Patina use them.
+ELEK2010 = {
+    "Cu": ((0.213, 1.04, 1.17), (4.05, 2.59, 2.36)),
+    "Cr": ((3.84, 3.18, 1.99), (4.37, 4.41, 4.22)),
+    "Cu2O": ((2.83, 3.10, 3.06), (0.083, 0.19, 0.6)),
+}
+
+#: The same three materials sampled from lamina's measured tables at Elek's wavelengths (`measured_rgb`);
+#: docs/validation.md compares them with ELEK2010.
+MEASURED_RGB = {m: measured_rgb(m) for m in ELEK2010}
 
 
 def plastic(albedo=(0.6, 0.1, 0.08), ior: float = 1.5, roughness: Roughness = 0.0) -> Stack:
@@ -216,7 +224,8 @@ __all__ = [
     "Patina",
     "patina",
     "metal",
-    "elek2010_rgb",
+    "measured_rgb",
+    "MEASURED_RGB",
     "ELEK2010",
     "plastic",
     "preset",

@@ -140,13 +140,17 @@ pub fn prepare(model: &str, stack: &Stack, opts: &Options) -> Result<Arc<dyn Mod
     Ok(prepared)
 }
 
-/// f(wi, wo) of one pair (rows of a block of one).
+/// The most per-element inputs a model declares.
+pub const MAX_INPUTS: usize = 4;
+
+/// f(wi, wo) of one pair (a block of one row) with the pair's per-element input values (at most MAX_INPUTS).
 pub fn eval_one(model: &dyn Model, wi: DVec3, wo: DVec3, inputs: &[Option<[f64; 3]>], out: &mut [f64]) {
-    let cols: Vec<[[f64; 1]; 3]> = inputs.iter().map(|v| v.unwrap_or_default().map(|x| [x])).collect();
-    let block: Vec<Option<[&[f64]; 3]>> =
-        inputs.iter().zip(&cols).map(|(v, c)| v.map(|_| [&c[0][..], &c[1][..], &c[2][..]])).collect();
+    let cols: [[[f64; 1]; 3]; MAX_INPUTS] =
+        std::array::from_fn(|j| inputs.get(j).copied().flatten().unwrap_or_default().map(|x| [x]));
+    let block: [Option<[&[f64]; 3]>; MAX_INPUTS] =
+        std::array::from_fn(|j| inputs.get(j).copied().flatten().map(|_| cols[j].each_ref().map(|c| &c[..])));
     out.fill(0.0);
-    model.eval_block([&[wi.x], &[wi.y], &[wi.z]], [&[wo.x], &[wo.y], &[wo.z]], &block, out);
+    model.eval_block([&[wi.x], &[wi.y], &[wi.z]], [&[wo.x], &[wo.y], &[wo.z]], &block[..inputs.len()], out);
 }
 
 /// Row r of a block's direction columns.

@@ -241,6 +241,7 @@ mod tests {
     #[test]
     fn every_option_of_every_model_parses_its_default_and_rejects_other_models_options() {
         for info in super::super::CATALOGUE {
+            assert!(info.inputs.len() <= super::super::MAX_INPUTS, "{}", info.name);
             let o = Options::parse(info.name, info.options, &[]).unwrap();
             assert_eq!(o, Options::parse(info.name, info.options, &[]).unwrap());
             let err = Options::parse(info.name, info.options, &[("nope".into(), Value::Flag(true))]).unwrap_err();

@@ -269,9 +269,10 @@ pub fn sample_stack<'py>(
         let (wi, pdf) = sample::sample(&*p, wo, r[1]);
         o[..3].copy_from_slice(&wi.to_array());
         if pdf > 0.0 {
-            let row: Vec<Option<[f64; 3]>> = slot.iter().map(|s| s.map(|k| r[k])).collect();
+            let row: [Option<[f64; 3]>; models::MAX_INPUTS] =
+                std::array::from_fn(|j| slot.get(j).copied().flatten().map(|k| r[k]));
             let (weight, tail) = o[3..].split_at_mut(c);
-            models::eval_one(&*p, wi, wo, &row, weight);
+            models::eval_one(&*p, wi, wo, &row[..slot.len()], weight);
             weight.iter_mut().for_each(|w| *w *= wi.z / pdf);
             tail[0] = pdf;
         }

@@ -139,19 +139,24 @@ impl Model for Prepared {
     }
 
     fn proposals(&self, wo: DVec3) -> Vec<(f64, Proposal)> {
-        let (cos_phi, sin_phi) = azimuth(wo);
-        let (lobes, view) = self.adding(wo.z, cos_phi, sin_phi);
+        // Each lobe's energy and roughness, and T↑ for the diffuse base: from the table when there is one.
+        let (lobes, t_up) = match &self.table {
+            Some(t) => Prepared::table_lobes(t, wo),
+            None => {
+                let (cos_phi, sin_phi) = azimuth(wo);
+                let (lobes, view) = self.adding(wo.z, cos_phi, sin_phi);
+                (lobes.iter().map(|l| (l.roughness(), l.energy.clone())).collect(), view.ti0)
+            }
+        };
         let mut out: Vec<(f64, Proposal)> = lobes
             .iter()
-            .filter_map(|lobe| {
-                let (ax, ay, angle) = lobe.roughness();
+            .filter_map(|&((ax, ay, angle), ref energy)| {
                 let mf = Microfacet::new(Distribution::Ggx, ax, ay, angle);
-                (!mf.is_smooth()).then(|| (mean(&lobe.energy), Proposal::Reflection(mf)))
+                (!mf.is_smooth()).then(|| (mean(energy), Proposal::Reflection(mf)))
             })
             .collect();
         if let Some(d) = &self.diffuse {
-            let e =
-                (0..self.channels).map(|c| d.albedo[c] * view.ti0[c] * view.ti0[c] / (1.0 - d.albedo[c] * d.r_up[c]));
+            let e = (0..self.channels).map(|c| d.albedo[c] * t_up[c] * t_up[c] / (1.0 - d.albedo[c] * d.r_up[c]));
             out.push((e.sum::<f64>() / self.channels as f64, Proposal::Cosine));
         }
         out.retain(|(w, _)| *w > 0.0);

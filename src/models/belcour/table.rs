@@ -33,6 +33,9 @@ pub(super) struct LobeTable {
     pub(super) t_up: Vec<f64>,
 }
 
+/// A lobe as sampling sees it: GGX (αx, αy, tangent angle) and energy per channel.
+pub(super) type GgxLobe = ((f64, f64, f64), Vec<f64>);
+
 /// Table corners of up to BLOCK rows: run index and bilinear weight of each of the four corners, per row.
 pub(super) struct Corners {
     pub(super) index: [[i32; BLOCK]; 4],
@@ -40,6 +43,30 @@ pub(super) struct Corners {
 }
 
 impl Prepared {
+    /// The lobes and the energy transmitted up (T↑, per channel) at the viewing direction wo, interpolated from the
+    /// table as the block evaluator does: per lobe its GGX roughness (αx, αy, tangent angle) and energies.
+    pub(super) fn table_lobes(t: &LobeTable, wo: DVec3) -> (Vec<GgxLobe>, Vec<f64>) {
+        let c = Self::corners(t, &[wo.z], &[wo.x], &[wo.y]);
+        let at = |values: &[f64], width: usize, offset: usize, i: usize| {
+            (0..4).map(|q| c.weight[q][0] * values[c.index[q][0] as usize * width + offset + i]).sum::<f64>()
+        };
+        let w = t.lobes * t.width;
+        let channels = t.t_up.len() / (t.nodes * t.azimuths);
+        let lobes = (0..t.lobes)
+            .map(|j| {
+                let value = |i: usize| at(&t.record, w, j * t.width, i);
+                let (alpha, first) = if t.azimuths > 1 {
+                    let (ax, ay, cos, sin) = Cov { xx: value(0), xy: value(1), yy: value(2) }.eigen_frame();
+                    ((ax, ay, sin.atan2(cos)), 3)
+                } else {
+                    ((value(0), value(0), 0.0), 1)
+                };
+                (alpha, (first..t.width).map(value).collect())
+            })
+            .collect();
+        (lobes, (0..channels).map(|ch| at(&t.t_up, channels, 0, ch)).collect())
+    }
+
     pub(super) fn tabulate(&self) -> LobeTable {
         let c = self.channels;
         let (nodes, azimuths) = if self.anisotropic { (ANISO_NODES, ANISO_AZIMUTHS) } else { (TABLE_NODES, 1) };
