@@ -20,6 +20,7 @@ CASES = {
     "belcour: anisotropic-coat-metal": "lamina.materials.suite('anisotropic-coat-metal')",
     "steinberg: rough-coat-rough-copper": "lamina.materials.suite('rough-coat-rough-copper')",
     "weidlich_wilkie: rough-coat-rough-copper": "lamina.materials.suite('rough-coat-rough-copper')",
+    "reference: rough-coat-rough-copper": "lamina.materials.suite('rough-coat-rough-copper')",
 }
 RUN = """
 import numpy as np, lamina
@@ -31,6 +32,14 @@ stack.eval(wi[:10], wo[:10], {model!r})
 for _ in range({repeats}):
     stack.eval(wi, wo, {model!r})
 """
+#: The reference: the NEE estimate of f at one pair and the brute-force albedo (800k paths), as bench_reference.
+RUN_REFERENCE = """
+import numpy as np, lamina
+stack = {stack}
+wi, wo = np.array([0.5, 0.0, 0.866]), np.array([-0.5, 0.3, 0.81])
+stack.reference(wi, wo, samples=400_000)
+stack.albedo(wi, "reference", samples=800_000)
+"""
 TOP = 8
 
 
@@ -38,7 +47,8 @@ def profile(model: str, stack: str, repeats: int) -> list:
     """(percent, symbol) of the TOP functions with the most samples."""
     with tempfile.TemporaryDirectory() as tmp:
         data = os.path.join(tmp, "perf.data")
-        code = RUN.format(stack=stack, model=model.split(":")[0], repeats=repeats)
+        run = RUN_REFERENCE if model == "reference" else RUN
+        code = run.format(stack=stack, model=model, repeats=repeats)
         subprocess.run(
             ["perf", "record", "-q", "-e", "cpu-clock", "-F", "999", "-o", data, "--", sys.executable, "-c", code],
             check=True,
