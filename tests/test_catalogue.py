@@ -55,7 +55,7 @@ def test_every_option_default_is_what_eval_uses(rng):
     """Passing every option at its catalogue default changes nothing, bit for bit."""
     wi, wo = rng.normal(size=(200, 3)), rng.normal(size=(200, 3))
     wi[:, 2], wo[:, 2] = np.abs(wi[:, 2]), np.abs(wo[:, 2])
-    for m in lamina.models()[:4]:
+    for m in lamina.models()[:-1]:  # the analytic models
         stack = lamina.materials.suite("rough-coat-rough-copper" if m.name != "microfacet" else "frosted-metal")
         stack = Stack(stack.layers[-1:]) if m.name == "microfacet" else stack
         defaults = {k: o.default for k, o in m.options.items()}
@@ -141,7 +141,7 @@ def _special_directions(dtype):
 @settings(max_examples=40, deadline=None)
 @given(
     stack=stacks(),
-    model=st.sampled_from(["belcour", "steinberg", "weidlich_wilkie"]),
+    model=st.sampled_from(["belcour", "steinberg", "weidlich_wilkie", "albedo_scaling"]),
     option=st.sampled_from(
         [{}, {"symmetric": True}, {"tir": "fraction"}, {"lut": "fitted"}, {"fresnel": "lazanyi"}, {"precomputed": True}]
     ),

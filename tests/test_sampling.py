@@ -27,7 +27,7 @@ STACKS = {
             "anisotropic-coat": Stack([Dielectric(1.5, (0.2, 0.45), angle=0.5), metal("Al", (0.35, 0.15), angle=-0.4)]),
             "varnished-diffuse": suite("varnished-diffuse"),
         }
-        for m in ("belcour", "steinberg", "weidlich_wilkie")
+        for m in ("belcour", "steinberg", "weidlich_wilkie", "albedo_scaling")
     },
 }
 CASES = [(m, name) for m, stacks in STACKS.items() for name in stacks]

@@ -7,6 +7,7 @@
 //! The last few prepared models are kept, so that repeated calls on one material (a renderer's loop, a notebook's
 //! sweep) build their tables once.
 
+pub mod albedo_scaling;
 pub mod belcour;
 pub mod microfacet;
 pub mod options;
@@ -27,7 +28,8 @@ use std::sync::{Arc, Mutex};
 pub const BLOCK: usize = 64;
 
 /// The models, in the order `lamina.MODELS` lists them.
-pub const CATALOGUE: &[&ModelInfo] = &[&microfacet::INFO, &belcour::INFO, &steinberg::INFO, &weidlich_wilkie::INFO];
+pub const CATALOGUE: &[&ModelInfo] =
+    &[&microfacet::INFO, &belcour::INFO, &steinberg::INFO, &weidlich_wilkie::INFO, &albedo_scaling::INFO];
 
 /// A per-element input a model accepts beside the directions (a texture's values, flake normals).
 #[derive(Clone, Copy, Debug)]

@@ -62,6 +62,8 @@ pub struct Options {
     pub extent: f64,
     pub transition: f64,
     pub tint: Vec<f64>,
+    /// Albedo scaling: (1 − E(μi))(1 − E(μo)) (reciprocal) instead of 1 − E(μo).
+    pub scaling_reciprocal: bool,
 }
 
 impl Default for Options {
@@ -80,6 +82,7 @@ impl Default for Options {
             extent: 0.5,
             transition: 0.1,
             tint: vec![1.0],
+            scaling_reciprocal: true,
         }
     }
 }
@@ -221,6 +224,7 @@ impl Options {
             "precomputed" => self.elek_precomputed = flag,
             "clamp_roughness" => self.clamp_roughness = flag,
             "eta2" => self.eta2 = flag,
+            "scaling" => self.scaling_reciprocal = text() == "reciprocal",
             "extent" => self.extent = number,
             "transition" => self.transition = number,
             "tint" => {
