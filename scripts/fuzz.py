@@ -60,6 +60,7 @@ VARIANTS = {
         {"g2": "height_correlated"},
         {"clamp_roughness": False, "eta2": False},
     ],
+    "albedo_scaling": [{}, {"scaling": "view"}, {"g2": "height_correlated"}],
 }
 
 

@@ -189,3 +189,15 @@ def test_prepared_models_are_reused_only_for_equal_arguments(rng):
     for k in range(20):  # evicts the first one
         stack(1.2 + 0.01 * k).eval(wi[:1], wo[:1], "belcour")
     np.testing.assert_array_equal(stack(1.5).eval(wi, wo, "belcour"), first)
+
+
+def test_cli_version_models_and_one_line_errors(tmp_path):
+    run = lambda *a: subprocess.run([sys.executable, "-m", "lamina.cli", *a], capture_output=True, text=True)  # noqa: E731
+    assert run("--version").stdout.strip() == f"lamina {lamina.__version__}"
+    listing = run("models").stdout
+    assert all(m in listing for m in lamina.MODELS) and "lut = 'tabulated'" in listing
+    bad = run("plot", "--material", "coated-copper", "--model", "microfacet", "--out", str(tmp_path))
+    assert bad.returncode == 2 and "Traceback" not in bad.stderr
+    assert bad.stderr.startswith("lamina: error: model 'microfacet'") and bad.stderr.count("\n") == 1
+    bad = run("plot", "--thetas", "0,x", "--out", str(tmp_path))
+    assert bad.returncode == 2 and "--thetas must be comma-separated numbers" in bad.stderr
