@@ -107,7 +107,7 @@ impl Prepared {
     /// Bilinear interpolation corners of directions (columns x, y, and the cosine θ to look up) in the table: linear
     /// in √cos θ and in the azimuth's `pseudo_angle` (period π); isotropic tables use the first two corners only.
     #[inline(always)]
-    pub(super) fn corners(t: &LobeTable, cos_theta: &[f64], x: &[f64], y: &[f64]) -> Corners {
+    fn corners(t: &LobeTable, cos_theta: &[f64], x: &[f64], y: &[f64]) -> Corners {
         let mut c = Corners { index: [[0; BLOCK]; 4], weight: [[0.0; BLOCK]; 4] };
         let (n, azimuths) = (cos_theta.len(), t.azimuths as i32);
         // Each pass a loop of its own, so that it vectorizes (positions as i32: AVX2 converts f64 to i32 only).
@@ -222,7 +222,7 @@ impl Prepared {
 /// = [cos, sin] per row (None: the local frame), for a block of columns; 0 where a row is not above the surface or
 /// its lobe is a Dirac delta (α = 0).
 #[inline(always)]
-pub(super) fn ggx_shapes(
+fn ggx_shapes(
     form: G2Form,
     alpha: [&[f64]; 2],
     frame: Option<[&[f64]; 2]>,
@@ -233,7 +233,7 @@ pub(super) fn ggx_shapes(
 ) {
     // One loop per G2 form, the form a known constant in each, so that it vectorizes.
     #[inline(always)]
-    pub(super) fn shapes(
+    fn shapes(
         form: G2Form,
         alpha: [&[f64]; 2],
         frame: Option<[&[f64]; 2]>,
