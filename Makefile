@@ -7,7 +7,7 @@ VPY := $(VENV)/bin/python
 # with LLVM 15); system-deps installs Debian's libllvm19 when root. Without one, the tests use scalar_* variants.
 LLVM = DRJIT_LIBLLVM_PATH="$$($(PY) tests/libllvm.py)"
 
-.PHONY: demo test lint develop venv test-deps system-deps rust-test py-test bench validation reference reliability fuzz readme clean
+.PHONY: demo test lint develop venv test-deps system-deps rust-test py-test bench validation reference reliability fuzz readme chart clean
 
 $(VPY):
 	$(PY) -m venv $(VENV)
@@ -77,6 +77,10 @@ reliability: develop
 fuzz: develop
 	$(VPY) scripts/fuzz.py
 	$(VPY) scripts/reliability.py
+
+# docs/speed_accuracy.json and .png: every model's CPU cost against its error on the suite (and the reference's).
+chart: develop
+	$(VPY) scripts/speed_accuracy.py
 
 # Regenerates the README's model table from the catalogue (lamina.models()).
 readme: develop

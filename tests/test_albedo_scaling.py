@@ -98,3 +98,17 @@ def test_a_conductor_ends_the_stack_and_options_are_checked():
         stack.eval(w, w, "albedo_scaling", scaling="both")
     with pytest.raises(TypeError, match="has no option 'lut'"):
         stack.eval(w, w, "albedo_scaling", lut="fitted")
+
+
+def test_openpbr_roughening_of_what_lies_beneath(rng):
+    """Under a rough coat of α_c a layer of α is evaluated at α′ = √min(1, α² + 2α_c²) (OpenPBR's r′ = (r⁴ + 2r_c⁴)^¼
+    with r = √α), per tangent axis, down the stack; roughening=False keeps the layers' own roughness."""
+    wi, wo = hemisphere(rng, 400), hemisphere(rng, 400)
+    n, k = (0.2, 0.45, 1.4), (3.6, 2.5, 1.9)
+    stack = Stack([Dielectric(1.5, (0.3, 0.1)), Conductor(n, k, (0.1, 0.4))])
+    alpha = (np.sqrt(0.1**2 + 2 * 0.3**2), np.sqrt(min(1.0, 0.4**2 + 2 * 0.1**2)))
+    same = Stack([Dielectric(1.5, (0.3, 0.1)), Conductor(n, k, alpha)])
+    np.testing.assert_allclose(
+        stack.eval(wi, wo, "albedo_scaling"), same.eval(wi, wo, "albedo_scaling", roughening=False), rtol=1e-12
+    )
+    assert not np.allclose(stack.eval(wi, wo, "albedo_scaling"), stack.eval(wi, wo, "albedo_scaling", roughening=False))

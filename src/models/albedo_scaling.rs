@@ -12,15 +12,17 @@
 //! | `scaling` | string | `reciprocal`        | S = T (1 − E(μi))(1 − E(μo)) (Adobe's openpbr-bsdf: reciprocal) |
 //! |           |        |                     | or `view`: S = T (1 − E(μo)) (the OpenPBR text, Standard        |
 //! |           |        |                     | Surface, MaterialX: energy-conserving for a view, not reciprocal) |
+//! | `roughening` | bool | `true`               | OpenPBR's roughening of each layer under a rough one:           |
+//! |           |        |                     | r′ = min(1, r⁴ + 2 r_c⁴)^{1/4} with r = √α: α′ = √min(1, α² + 2α_c²) |
 //!
-//! What the standards add and lamina leaves out (documented in docs/validation.md's reading): OpenPBR's coat
-//! darkening Δ = (1 − K)/(1 − E_b K) (the light the coat reflects back onto the base), its roughening of the base
-//! (r_B′ = (r_B⁴ + 2 r_C⁴)^{1/4}), coat colour as the square of the normal-incidence transmittance, and the weights
-//! that blend a coat in and out. E is the FGD table's (separable Smith, like the lobes by default), at the
+//! What the standards add and lamina leaves out: OpenPBR's coat darkening Δ = (1 − K)/(1 − E_b K) (the light the
+//! coat reflects back onto the base), coat colour as the square of the normal-incidence transmittance, and the
+//! weights that blend a coat in and out. The roughening is applied down the stack, each layer against the already
+//! roughened one above it. E is the FGD table's (separable Smith, like the lobes by default), at the
 //! geometric-mean roughness √(αx αy) for anisotropic interfaces. Sampling: each rough lobe by its visible normals,
 //! weighted by its share of the energy, and the diffuse base by the cosine.
 
-use super::options::{choice, G2_FORMS};
+use super::options::{choice, flag, G2_FORMS};
 use super::{eval_rows, InputSpec, Inputs, Model, ModelInfo, OptionSpec, Options, Properties, Proposal};
 use crate::bsdf;
 use crate::error::Result;
@@ -35,6 +37,7 @@ pub const INFO: ModelInfo = ModelInfo {
     summary: "the production coat model (OpenPBR, Standard Surface): lobes stacked with 1 − E(μ) albedo scaling",
     options: &[
         choice("g2", G2_FORMS, "separable", "masking-shadowing of the lobes; separable, as in the FGD table behind E"),
+        flag("roughening", true, "OpenPBR's roughening of each layer under a rough one, α′ = √min(1, α² + 2α_c²)"),
         choice(
             "scaling",
             &["reciprocal", "view"],
@@ -67,11 +70,23 @@ pub struct Prepared {
     channels: usize,
 }
 
+/// OpenPBR's roughening of what lies under a rough coat, r′ = min(1, r⁴ + 2 r_c⁴)^{1/4} in its roughness r = √α,
+/// i.e. α′ = √min(1, α² + 2 α_c²), per tangent axis.
+pub fn roughened(alpha: f64, coat: f64) -> f64 {
+    (alpha * alpha + 2.0 * coat * coat).min(1.0).sqrt()
+}
+
 pub fn prepare(stack: &Stack, opts: &Options) -> Result<Prepared> {
-    let mut interfaces = Vec::new();
+    let mut interfaces: Vec<Interface> = Vec::new();
     let mut diffuse = None;
     for (layer, rel) in stack.layers.iter().zip(stack.interfaces()) {
-        let mf = layer.microfacet(Distribution::Ggx);
+        let mf = layer.microfacet(Distribution::Ggx).map(|mf| match interfaces.last() {
+            Some(above) if opts.roughening && !above.mf.is_smooth() => {
+                let (ax, ay) = if mf.is_smooth() { (0.0, 0.0) } else { (mf.alpha_x, mf.alpha_y) };
+                mf.with_alpha(roughened(ax, above.mf.alpha_x), roughened(ay, above.mf.alpha_y))
+            }
+            _ => mf,
+        });
         match layer {
             Layer::Dielectric { thickness, sigma_a, sigma_s, .. } => interfaces.push(Interface {
                 mf: mf.expect("dielectrics have an interface"),

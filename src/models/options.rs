@@ -64,6 +64,8 @@ pub struct Options {
     pub tint: Vec<f64>,
     /// Albedo scaling: (1 − E(μi))(1 − E(μo)) (reciprocal) instead of 1 − E(μo).
     pub scaling_reciprocal: bool,
+    /// Albedo scaling: OpenPBR's roughening of each layer under a rough one.
+    pub roughening: bool,
 }
 
 impl Default for Options {
@@ -83,6 +85,7 @@ impl Default for Options {
             transition: 0.1,
             tint: vec![1.0],
             scaling_reciprocal: true,
+            roughening: true,
         }
     }
 }
@@ -225,6 +228,7 @@ impl Options {
             "clamp_roughness" => self.clamp_roughness = flag,
             "eta2" => self.eta2 = flag,
             "scaling" => self.scaling_reciprocal = text() == "reciprocal",
+            "roughening" => self.roughening = flag,
             "extent" => self.extent = number,
             "transition" => self.transition = number,
             "tint" => {
