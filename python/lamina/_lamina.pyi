@@ -9,28 +9,36 @@ MODELS: list[str]
 REFERENCE_MAX_DEPTH: int
 __version__: str
 
+def check_layer(layer: dict, name: str) -> None: ...
 def check_stack(layers: list[dict], ext_ior: float, model: str | None = None) -> int: ...
-def eval_stack(
+def models() -> list[dict]: ...
+def eval(
     layers: list[dict],
     ext_ior: float,
     model: str,
     wi: Array,
     wo: Array,
     options: dict | None = None,
-    flake_normal: Array | None = None,
-    distance: Array | None = None,
+    inputs: dict[str, Array] | None = None,
 ) -> Array: ...
-def eval_patina(
-    bare: list[dict],
-    patina: list[dict],
+def sample(
+    layers: list[dict],
     ext_ior: float,
-    tint: list[float],
-    extent: float,
-    transition: float,
-    wi: Array,
+    model: str,
     wo: Array,
-    mask: Array,
+    u: Array,
     options: dict | None = None,
+    inputs: dict[str, Array] | None = None,
+) -> Array: ...
+def pdf(layers: list[dict], ext_ior: float, model: str, wi: Array, wo: Array, options: dict | None = None) -> Array: ...
+def specular(layers: list[dict], ext_ior: float, model: str, wo: Array, options: dict | None = None) -> Array: ...
+def reference_sample(
+    layers: list[dict],
+    ext_ior: float,
+    wo: Array,
+    u: Array,
+    distribution: str = "ggx",
+    g2: str = "height_correlated",
 ) -> Array: ...
 def steinberg_lut(mu: Array, alpha: Array, eta: Array, lut: str) -> Array: ...
 def fresnel_dielectric(cos_i: Array, eta: Array) -> Array: ...
