@@ -7,7 +7,7 @@ VPY := $(VENV)/bin/python
 # with LLVM 15); system-deps installs Debian's libllvm19 when root. Without one, the tests use scalar_* variants.
 LLVM = DRJIT_LIBLLVM_PATH="$$($(PY) tests/libllvm.py)"
 
-.PHONY: demo test lint develop venv test-deps system-deps rust-test py-test bench validation reference reliability fuzz readme chart clean
+.PHONY: demo test lint wheel-test develop venv test-deps system-deps rust-test py-test bench validation reference reliability fuzz readme chart clean
 
 $(VPY):
 	$(PY) -m venv $(VENV)
@@ -19,6 +19,7 @@ venv: $(VPY)
 # Builds the Rust extension in release mode into the venv (editable install of python/lamina); this project's venv
 # even when another one is active in the calling shell.
 develop: venv
+	rm -f python/lamina/_lamina.cpython-*.so  # a pre-abi3 build would shadow the abi3 one
 	VIRTUAL_ENV="$(abspath $(VENV))" $(VENV)/bin/maturin develop --release -q
 
 demo: develop
@@ -37,22 +38,32 @@ system-deps:
 	fi
 
 test-deps: venv system-deps
-	$(VPY) -m pip install -q "pytest>=7" "hypothesis>=6" "colour-science>=0.4.4" scipy "mitsuba>=3.9,<3.10" "ruff==0.17.6" "dask[distributed]>=2024.1"
+	$(VPY) -m pip install -q "pytest>=7" "hypothesis>=6" "colour-science>=0.4.4" scipy "mitsuba>=3.9,<3.10" "ruff==0.17.6" "dask[distributed]>=2024.1" mypy
 
 rust-test:
 	cargo test --release
 
-# Formatting and lints of both languages (clippy over every target, the Python bindings included).
-lint: test-deps
+# Formatting and lints of both languages (clippy over every target, the Python bindings included), and the
+# extension's type stubs against the built module (mypy's stubtest).
+lint: develop test-deps
 	cargo fmt --check
 	cargo clippy --release --all-targets --features python -- -D warnings
 	$(VENV)/bin/ruff check python tests scripts benchmarks
 	$(VENV)/bin/ruff format --check python tests scripts benchmarks
+	$(VPY) -m mypy.stubtest lamina._lamina
+
+# The abi3 wheel as a user installs it: built, installed into a throwaway venv, imported and used from another
+# directory; it must carry py.typed and the stubs.
+wheel-test: venv
+	rm -rf target/wheels
+	VIRTUAL_ENV="$(abspath $(VENV))" $(VENV)/bin/maturin build --release -q -o target/wheels
+	tmp=$$(mktemp -d) && $(PY) -m venv $$tmp/venv && $$tmp/venv/bin/pip install -q target/wheels/*.whl && \
+		cd $$tmp && $$tmp/venv/bin/python $(abspath tests/wheel_smoke.py)
 
 py-test: develop test-deps
 	$(LLVM) $(VPY) -m pytest tests
 
-test: lint rust-test py-test
+test: lint rust-test py-test wheel-test
 
 bench: develop test-deps
 	@if [ "$$(id -u)" = 0 ] && command -v apt-get >/dev/null && ! command -v perf >/dev/null; then \

@@ -3,7 +3,36 @@
 import numpy as np
 from numpy.typing import NDArray
 
-Array = NDArray[np.float32] | NDArray[np.float64]
+_Array = NDArray[np.float32] | NDArray[np.float64]
+
+__all__ = [
+    "MODELS",
+    "REFERENCE_MAX_DEPTH",
+    "__version__",
+    "belcour_lobes",
+    "check_layer",
+    "check_stack",
+    "eval",
+    "fresnel_conductor",
+    "fresnel_dielectric",
+    "fresnel_diffuse_reflectance",
+    "fresnel_schlick",
+    "interface_bsdf",
+    "jacobian",
+    "microfacet_d",
+    "microfacet_g2",
+    "microfacet_lambda",
+    "models",
+    "pdf",
+    "pdf_visible",
+    "reference_f",
+    "reference_sample",
+    "reference_tally",
+    "sample",
+    "sample_visible",
+    "specular",
+    "steinberg_lut",
+]
 
 MODELS: list[str]
 REFERENCE_MAX_DEPTH: int
@@ -16,47 +45,49 @@ def eval(
     layers: list[dict],
     ext_ior: float,
     model: str,
-    wi: Array,
-    wo: Array,
+    wi: _Array,
+    wo: _Array,
     options: dict | None = None,
-    inputs: dict[str, Array] | None = None,
-) -> Array: ...
+    inputs: dict[str, _Array] | None = None,
+) -> _Array: ...
 def sample(
     layers: list[dict],
     ext_ior: float,
     model: str,
-    wo: Array,
-    u: Array,
+    wo: _Array,
+    u: _Array,
     options: dict | None = None,
-    inputs: dict[str, Array] | None = None,
-) -> Array: ...
-def pdf(layers: list[dict], ext_ior: float, model: str, wi: Array, wo: Array, options: dict | None = None) -> Array: ...
-def specular(layers: list[dict], ext_ior: float, model: str, wo: Array, options: dict | None = None) -> Array: ...
+    inputs: dict[str, _Array] | None = None,
+) -> _Array: ...
+def pdf(
+    layers: list[dict], ext_ior: float, model: str, wi: _Array, wo: _Array, options: dict | None = None
+) -> _Array: ...
+def specular(layers: list[dict], ext_ior: float, model: str, wo: _Array, options: dict | None = None) -> _Array: ...
 def reference_sample(
     layers: list[dict],
     ext_ior: float,
-    wo: Array,
-    u: Array,
+    wo: _Array,
+    u: _Array,
     distribution: str = "ggx",
     g2: str = "height_correlated",
-) -> Array: ...
-def steinberg_lut(mu: Array, alpha: Array, eta: Array, lut: str) -> Array: ...
-def fresnel_dielectric(cos_i: Array, eta: Array) -> Array: ...
-def fresnel_conductor(cos_i: Array, eta: Array, k: Array, form: str) -> Array: ...
-def fresnel_schlick(cos_i: Array, f0: Array) -> Array: ...
-def fresnel_diffuse_reflectance(eta: Array) -> Array: ...
+) -> _Array: ...
+def steinberg_lut(mu: _Array, alpha: _Array, eta: _Array, lut: str) -> _Array: ...
+def fresnel_dielectric(cos_i: _Array, eta: _Array) -> _Array: ...
+def fresnel_conductor(cos_i: _Array, eta: _Array, k: _Array, form: str) -> _Array: ...
+def fresnel_schlick(cos_i: _Array, f0: _Array) -> _Array: ...
+def fresnel_diffuse_reflectance(eta: _Array) -> _Array: ...
 
 #: (alpha_x, alpha_y, angle in radians, distribution 'ggx' | 'beckmann')
-MicrofacetSpec = tuple[float, float, float, str]
+_MicrofacetSpec = tuple[float, float, float, str]
 
-def microfacet_d(m: Array, mf: MicrofacetSpec) -> Array: ...
-def microfacet_lambda(w: Array, mf: MicrofacetSpec) -> Array: ...
-def microfacet_g2(wi: Array, wo: Array, m: Array, mf: MicrofacetSpec, g2: str) -> Array: ...
-def sample_visible(wi: Array, u: Array, mf: MicrofacetSpec) -> Array: ...
-def pdf_visible(wi: Array, m: Array, mf: MicrofacetSpec) -> Array: ...
+def microfacet_d(m: _Array, mf: _MicrofacetSpec) -> _Array: ...
+def microfacet_lambda(w: _Array, mf: _MicrofacetSpec) -> _Array: ...
+def microfacet_g2(wi: _Array, wo: _Array, m: _Array, mf: _MicrofacetSpec, g2: str) -> _Array: ...
+def sample_visible(wi: _Array, u: _Array, mf: _MicrofacetSpec) -> _Array: ...
+def pdf_visible(wi: _Array, m: _Array, mf: _MicrofacetSpec) -> _Array: ...
 def interface_bsdf(
-    kind: str, wi: Array, wo: Array, eta: list[float], k: list[float], mf: MicrofacetSpec, g2: str
-) -> Array: ...
+    kind: str, wi: _Array, wo: _Array, eta: list[float], k: list[float], mf: _MicrofacetSpec, g2: str
+) -> _Array: ...
 def reference_tally(
     layers: list[dict],
     ext_ior: float,
@@ -83,4 +114,4 @@ def reference_f(
 def belcour_lobes(
     layers: list[dict], ext_ior: float, wo: list[list[float]]
 ) -> tuple[list[list[list[float]]], list[list[list[float]]], list[list[list[float]]]]: ...
-def jacobian(theta_i: Array, xh: Array, yh: Array, eta: Array | None = None, exact: bool = True) -> Array: ...
+def jacobian(theta_i: _Array, xh: _Array, yh: _Array, eta: _Array | None = None, exact: bool = True) -> _Array: ...
