@@ -51,9 +51,12 @@ class Stack:
         return [layer._resolve(wavelengths) for layer in self.layers]
 
     def _split(self, model: str, kwargs: dict) -> tuple:
-        """`model`'s catalogue entry, its options and its per-element inputs from keyword arguments."""
+        """`model`'s catalogue entry, its options and its per-element inputs from keyword arguments; the inputs as
+        `broadcast` takes them, (array, width) with width 0 for a scalar map."""
         m = _model(model)
-        inputs = {k: v for k, v in kwargs.items() if k in m.inputs}
+        inputs = {
+            k: (v, 0 if m.inputs[k].width == 1 else m.inputs[k].width) for k, v in kwargs.items() if k in m.inputs
+        }
         options = {k: v for k, v in kwargs.items() if k not in m.inputs}
         unknown = [k for k in options if k not in m.options]
         if unknown:
@@ -85,11 +88,7 @@ class Stack:
         if m.name == "reference":
             return self.reference(wi, wo, wavelengths=wavelengths, samples=samples, seed=seed, **options)[0]
         wl = _wavelengths(wavelengths)
-        arrays = broadcast(
-            wi=(wi, 3),
-            wo=(wo, 3),
-            **{k: (v, 0 if m.inputs[k].width == 1 else m.inputs[k].width) for k, v in inputs.items()},
-        )
+        arrays = broadcast(wi=(wi, 3), wo=(wo, 3), **inputs)
         named = dict(zip(inputs, arrays[2:]))
         return _lamina.eval(self._resolve(wl), self.ext_ior, m.name, arrays[0], arrays[1], options, named)
 
@@ -106,11 +105,7 @@ class Stack:
         form; its samples include the Dirac paths."""
         m, options, inputs = self._split(model, kwargs)
         wl = _wavelengths(wavelengths)
-        wo, u, *rest = broadcast(
-            wo=(wo, 3),
-            u=(u, 3),
-            **{k: (v, 0 if m.inputs[k].width == 1 else m.inputs[k].width) for k, v in inputs.items()},
-        )
+        wo, u, *rest = broadcast(wo=(wo, 3), u=(u, 3), **inputs)
         if m.name == "reference":
             out = _lamina.reference_sample(self._resolve(wl), self.ext_ior, wo, u, **options)
         else:

@@ -19,16 +19,19 @@
 //! coat reflects back onto the base), coat colour as the square of the normal-incidence transmittance, and the
 //! weights that blend a coat in and out. The roughening is applied down the stack, each layer against the already
 //! roughened one above it. E is the FGD table's (separable Smith, like the lobes by default), at the
-//! geometric-mean roughness √(αx αy) for anisotropic interfaces. Sampling: each rough lobe by its visible normals,
-//! weighted by its share of the energy, and the diffuse base by the cosine.
+//! geometric-mean roughness √(αx αy) for anisotropic interfaces. The layers are the single-pass models' (their
+//! Fresnel terms, refraction and Beer–Lambert too). Sampling: each rough lobe by its visible normals, weighted by
+//! its share of the energy, the diffuse base by the cosine, and the layered models' defensive cosine share.
 
 use super::options::{choice, flag, G2_FORMS};
+use super::single_pass::{self, beer_lambert, refracted_up, Interface, SpLayer};
 use super::{eval_rows, InputSpec, Inputs, Model, ModelInfo, OptionSpec, Options, Properties, Proposal};
 use crate::bsdf;
 use crate::error::Result;
 use crate::optics::distribution::{Distribution, G2Form, Microfacet};
-use crate::optics::{diffuse, fresnel, sin_theta};
-use crate::stack::{Layer, Stack};
+use crate::optics::fresnel::FresnelForm;
+use crate::optics::{diffuse, sin_theta};
+use crate::stack::Stack;
 use crate::tables;
 use glam::DVec3;
 
@@ -51,20 +54,9 @@ pub const INFO: ModelInfo = ModelInfo {
     prepare: |stack, opts| Ok(Box::new(prepare(stack, opts)?)),
 };
 
-/// One interface: its lobe, relative IOR and κ per channel, and the slab beneath it (thickness, σt per channel).
-struct Interface {
-    mf: Microfacet,
-    eta: Vec<f64>,
-    kappa: Vec<f64>,
-    conductor: bool,
-    thickness: f64,
-    sigma_t: Vec<f64>,
-}
-
 pub struct Prepared {
-    interfaces: Vec<Interface>,
-    /// A diffuse base: albedo per channel and Oren–Nayar σ.
-    diffuse: Option<(Vec<f64>, f64)>,
+    /// The stack as the single-pass models see it (models/single_pass.rs), roughened.
+    layers: Vec<SpLayer>,
     g2: G2Form,
     reciprocal: bool,
     channels: usize,
@@ -77,75 +69,55 @@ pub fn roughened(alpha: f64, coat: f64) -> f64 {
 }
 
 pub fn prepare(stack: &Stack, opts: &Options) -> Result<Prepared> {
-    let mut interfaces: Vec<Interface> = Vec::new();
-    let mut diffuse = None;
-    for (layer, rel) in stack.layers.iter().zip(stack.interfaces()) {
-        let mf = layer.microfacet(Distribution::Ggx).map(|mf| match interfaces.last() {
-            Some(above) if opts.roughening && !above.mf.is_smooth() => {
-                let (ax, ay) = if mf.is_smooth() { (0.0, 0.0) } else { (mf.alpha_x, mf.alpha_y) };
-                mf.with_alpha(roughened(ax, above.mf.alpha_x), roughened(ay, above.mf.alpha_y))
+    let mut layers = single_pass::layers(stack, Distribution::Ggx, false);
+    if opts.roughening {
+        let mut above: Option<Microfacet> = None;
+        for layer in &mut layers {
+            if let SpLayer::Dielectric { iface, .. } | SpLayer::Conductor(iface) = layer {
+                if let Some(coat) = above.filter(|c| !c.is_smooth()) {
+                    let mf = iface.mf;
+                    let (ax, ay) = if mf.is_smooth() { (0.0, 0.0) } else { (mf.alpha_x, mf.alpha_y) };
+                    iface.mf = mf.with_alpha(roughened(ax, coat.alpha_x), roughened(ay, coat.alpha_y));
+                }
+                above = Some(iface.mf);
             }
-            _ => mf,
-        });
-        match layer {
-            Layer::Dielectric { thickness, sigma_a, sigma_s, .. } => interfaces.push(Interface {
-                mf: mf.expect("dielectrics have an interface"),
-                eta: rel.eta,
-                kappa: rel.kappa,
-                conductor: false,
-                thickness: *thickness,
-                sigma_t: sigma_a.iter().zip(sigma_s).map(|(a, s)| a + s).collect(),
-            }),
-            Layer::Conductor { .. } => interfaces.push(Interface {
-                mf: mf.expect("conductors have an interface"),
-                eta: rel.eta,
-                kappa: rel.kappa,
-                conductor: true,
-                thickness: 0.0,
-                sigma_t: vec![0.0; stack.channels],
-            }),
-            Layer::Diffuse { albedo, roughness } => diffuse = Some((albedo.clone(), *roughness)),
         }
     }
     tables::fgd(); // generate or load the table outside the parallel evaluation
-    Ok(Prepared { interfaces, diffuse, g2: opts.g2, reciprocal: opts.scaling_reciprocal, channels: stack.channels })
+    Ok(Prepared { layers, g2: opts.g2, reciprocal: opts.scaling_reciprocal, channels: stack.channels })
 }
 
-impl Interface {
-    /// Fresnel reflectance of channel c at cosine `cos` (exact dielectric or conductor).
-    fn fresnel(&self, cos: f64, c: usize) -> f64 {
-        if self.conductor {
-            fresnel::conductor(cos, self.eta[c], self.kappa[c])
-        } else {
-            fresnel::dielectric(cos, self.eta[c])
-        }
-    }
+/// Fresnel reflectance of channel c at cosine `cos` (exact dielectric or conductor).
+fn fresnel(i: &Interface, cos: f64, c: usize) -> f64 {
+    i.fresnel(FresnelForm::Exact, cos, c)
+}
 
-    /// E(μ): the directional albedo of the interface's lobe (FGD table; the Fresnel reflectance itself when smooth).
-    fn albedo(&self, mu: f64, c: usize) -> f64 {
-        if self.mf.is_smooth() {
-            return self.fresnel(mu, c);
-        }
-        let alpha = (self.mf.alpha_x * self.mf.alpha_y).sqrt();
-        tables::fgd().lookup(mu, alpha, self.eta[c], self.kappa[c])
+/// E(μ): the directional albedo of the interface's lobe (FGD table; the Fresnel reflectance itself when smooth).
+fn albedo(i: &Interface, mu: f64, c: usize) -> f64 {
+    if i.mf.is_smooth() {
+        return fresnel(i, mu, c);
     }
-
-    /// Beer–Lambert transmittance of the slab beneath, along both refracted directions (Snell at channel c's IOR).
-    fn transmittance(&self, wi: DVec3, wo: DVec3, c: usize) -> f64 {
-        if self.sigma_t[c] * self.thickness == 0.0 {
-            return 1.0;
-        }
-        let refracted = |w: DVec3| (1.0 - (sin_theta(w) / self.eta[c]).powi(2)).max(1e-18).sqrt();
-        (-self.sigma_t[c] * self.thickness * (1.0 / refracted(wi) + 1.0 / refracted(wo))).exp()
-    }
+    let alpha = (i.mf.alpha_x * i.mf.alpha_y).sqrt();
+    tables::fgd().lookup(mu, alpha, i.eta[c], i.kappa[c])
 }
 
 impl Prepared {
-    /// The scale S of what lies beneath interface `i` for channel c.
-    fn scale(&self, i: &Interface, wi: DVec3, wo: DVec3, c: usize) -> f64 {
-        let view = 1.0 - i.albedo(wo.z, c);
-        let light = if self.reciprocal { 1.0 - i.albedo(wi.z, c) } else { 1.0 };
-        (light * view).max(0.0) * i.transmittance(wi, wo, c)
+    /// The interfaces top to bottom, each with the slab beneath it (thickness, σt per channel); None for the base.
+    fn interfaces(&self) -> impl Iterator<Item = (&Interface, Option<(f64, &[f64])>)> {
+        self.layers.iter().filter_map(|layer| match layer {
+            SpLayer::Dielectric { iface, thickness, sigma_t, .. } => Some((iface, Some((*thickness, &sigma_t[..])))),
+            SpLayer::Conductor(iface) => Some((iface, None)),
+            SpLayer::Diffuse { .. } => None,
+        })
+    }
+
+    /// The scale S of what lies beneath interface `i` (over its slab) for channel c: 1 − E per direction and the
+    /// slab's Beer–Lambert transmittance along the refracted directions.
+    fn scale(&self, i: &Interface, (thickness, sigma_t): (f64, &[f64]), wi: DVec3, wo: DVec3, c: usize) -> f64 {
+        let view = 1.0 - albedo(i, wo.z, c);
+        let light = if self.reciprocal { 1.0 - albedo(i, wi.z, c) } else { 1.0 };
+        let down = |w: DVec3| refracted_up(w, sin_theta(w) / i.eta[c]);
+        (light * view).max(0.0) * beer_lambert(sigma_t[c], thickness, down(wi), down(wo))
     }
 
     /// f(wi, wo) per channel into `out`; zero below the horizon.
@@ -155,20 +127,18 @@ impl Prepared {
             return;
         }
         let mut weight = vec![1.0; self.channels];
-        for i in &self.interfaces {
+        for (i, slab) in self.interfaces() {
             if let Some((geo, cos_h)) = bsdf::reflection_geometry(&i.mf, self.g2, wi, wo) {
                 for (c, o) in out.iter_mut().enumerate() {
-                    *o += weight[c] * geo * i.fresnel(cos_h, c);
+                    *o += weight[c] * geo * fresnel(i, cos_h, c);
                 }
             }
-            if i.conductor {
-                return;
-            }
+            let Some(slab) = slab else { return };
             for (c, w) in weight.iter_mut().enumerate() {
-                *w *= self.scale(i, wi, wo, c);
+                *w *= self.scale(i, slab, wi, wo, c);
             }
         }
-        if let Some((albedo, sigma)) = &self.diffuse {
+        if let Some(SpLayer::Diffuse { albedo, sigma }) = self.layers.last() {
             let shape = diffuse::oren_nayar_shape(*sigma, wi, wo);
             for (c, o) in out.iter_mut().enumerate() {
                 *o += weight[c] * albedo[c] * shape;
@@ -184,23 +154,21 @@ impl Prepared {
         let mut weight = vec![1.0; self.channels];
         let mut smooth_above = true;
         let mut out = Vec::new();
-        for i in &self.interfaces {
+        for (i, slab) in self.interfaces() {
             if i.mf.is_smooth() {
                 if smooth_above {
-                    (0..self.channels).for_each(|c| mirror[c] += weight[c] * i.fresnel(wo.z, c));
+                    (0..self.channels).for_each(|c| mirror[c] += weight[c] * fresnel(i, wo.z, c));
                 }
             } else {
-                out.push((mean(&|c| weight[c] * i.albedo(wo.z, c)), Proposal::Reflection(i.mf)));
+                out.push((mean(&|c| weight[c] * albedo(i, wo.z, c)), Proposal::Reflection(i.mf)));
                 smooth_above = false;
             }
-            if i.conductor {
-                return out;
-            }
+            let Some(slab) = slab else { return out };
             for (c, w) in weight.iter_mut().enumerate() {
-                *w *= self.scale(i, wo, wo, c);
+                *w *= self.scale(i, slab, wo, wo, c);
             }
         }
-        if let Some((albedo, _)) = &self.diffuse {
+        if let Some(SpLayer::Diffuse { albedo, .. }) = self.layers.last() {
             out.push((mean(&|c| weight[c] * albedo[c]), Proposal::Cosine));
         }
         out
@@ -213,15 +181,7 @@ impl Model for Prepared {
     }
 
     fn proposals(&self, wo: DVec3) -> Vec<(f64, Proposal)> {
-        let mut mirror = vec![0.0; self.channels];
-        let mut lobes: Vec<_> = self.terms(wo, &mut mirror).into_iter().filter(|(w, _)| *w > 0.0).collect();
-        let total: f64 = lobes.iter().map(|(w, _)| w).sum();
-        if total > 0.0 {
-            // The lower lobes are evaluated at the outside directions, so the lobes cover f; a small cosine share
-            // keeps the pdf positive wherever a grazing lobe's visible normals thin out.
-            lobes.push((0.02 * total, Proposal::Cosine));
-        }
-        lobes
+        super::sample::defensive_mixture(self.terms(wo, &mut vec![0.0; self.channels]))
     }
 
     fn specular(&self, wo: DVec3, out: &mut [f64]) {

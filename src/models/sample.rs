@@ -10,6 +10,21 @@ use crate::sampling::cosine_hemisphere;
 use glam::DVec3;
 use std::f64::consts::FRAC_1_PI;
 
+/// Share of a layered model's sampling mixture given to the cosine lobe, so that the pdf covers every direction where
+/// f is non-zero: the lobes of layers under a coat are proposed at the outside directions, which they only approach.
+pub const DEFENSIVE: f64 = 0.05;
+
+/// A layered model's mixture from its terms' estimated energies: the terms with energy, plus the DEFENSIVE cosine
+/// share (none when nothing has energy: only Dirac lobes).
+pub fn defensive_mixture(terms: Vec<(f64, Proposal)>) -> Vec<(f64, Proposal)> {
+    let mut lobes: Vec<(f64, Proposal)> = terms.into_iter().filter(|(w, _)| *w > 0.0).collect();
+    let total: f64 = lobes.iter().map(|(w, _)| w).sum();
+    if total > 0.0 {
+        lobes.push((DEFENSIVE * total / (1.0 - DEFENSIVE), Proposal::Cosine));
+    }
+    lobes
+}
+
 /// pdf of wi under one lobe for the viewing direction wo: D_wo(h) / (4 wo·h) for a reflection lobe (the Jacobian
 /// of the reflection map, Walter et al. 2007 eq. 14), cos θi / π for the cosine lobe.
 pub fn lobe_pdf(lobe: &Proposal, wi: DVec3, wo: DVec3) -> f64 {

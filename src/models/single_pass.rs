@@ -21,10 +21,6 @@ use crate::tables::elek::FresnelTable;
 use glam::DVec3;
 use std::f64::consts::FRAC_1_PI;
 
-/// Share of the sampling mixture always given to the cosine lobe, so that the pdf covers every direction where a
-/// single-pass model's f is non-zero (its deeper lobes sit at refracted directions the outside lobes only approach).
-pub const DEFENSIVE: f64 = 0.05;
-
 /// A rough (or smooth) interface with its relative IOR per channel (below / above) and κ for conductors; `table`
 /// holds Elek's precomputed Fresnel table per channel when that variant is used.
 pub struct Interface {
@@ -126,15 +122,6 @@ pub fn beer_lambert(sigma_t: f64, thickness: f64, wi: DVec3, wo: DVec3) -> f64 {
     (-sigma_t * thickness * (1.0 / wi.z.max(1e-9) + 1.0 / wo.z.max(1e-9))).exp()
 }
 
-/// Modifiers of the opaque base: a tilted normal (car-paint flakes) and a tint of its contribution (tarnish).
-#[derive(Clone, Copy)]
-pub struct Base {
-    pub normal: Option<DVec3>,
-    pub tint: f64,
-}
-
-pub const PLAIN_BASE: Base = Base { normal: None, tint: 1.0 };
-
 /// What distinguishes one single-pass model from another: its lobe geometry and how a dielectric interface transmits.
 pub trait Transport {
     /// D G2 / (4 cos θi cos θo) of the interface at (wi, wo) and the cosine wi·h its Fresnel term takes.
@@ -176,21 +163,22 @@ impl Walk {
     }
 
     /// f(wi, wo) of `layers` (this walk's, or a per-element variant of them with the same channel structure) for
-    /// every channel into `out`; zero below the horizon. `base` holds the base's modifiers per channel (or one for
-    /// all). A block of one row (`eval_block`).
+    /// every channel into `out`; zero below the horizon. `normal` tilts the base, `tint` scales it per channel (or one
+    /// for all). A block of one row (`eval_block`).
+    #[allow(clippy::too_many_arguments)]
     pub fn eval(
         &self,
         model: &impl Transport,
         layers: &[SpLayer],
         wi: DVec3,
         wo: DVec3,
-        base: &[Base],
+        normal: Option<DVec3>,
+        tint: &[f64],
         out: &mut [f64],
     ) {
-        let tint: Vec<f64> = base.iter().map(|b| b.tint).collect();
-        let normal = base[0].normal.map(|n| [n]);
+        let normal = normal.map(|n| [n]);
         let (wi, wo) = ([&[wi.x][..], &[wi.y], &[wi.z]], [&[wo.x][..], &[wo.y], &[wo.z]]);
-        self.eval_block(model, layers, wi, wo, normal.as_ref().map(|n| &n[..]), &tint, out)
+        self.eval_block(model, layers, wi, wo, normal.as_ref().map(|n| &n[..]), tint, out)
     }
 
     /// f for a block of n ≤ BLOCK rows given as columns into `out` (n rows of one value per channel); `normal` tilts
@@ -378,14 +366,7 @@ impl Walk {
     /// The sampling mixture for wo: each rough interface's reflection lobe and the diffuse terms, weighted by their
     /// estimated energies, plus the defensive cosine share.
     pub fn proposals(&self, wo: DVec3, channels: usize) -> Vec<(f64, Proposal)> {
-        let mut mirror = vec![0.0; channels];
-        let mut lobes: Vec<(f64, Proposal)> =
-            self.terms(wo, &mut mirror).into_iter().filter(|(w, _)| *w > 0.0).collect();
-        let total: f64 = lobes.iter().map(|(w, _)| w).sum();
-        if total > 0.0 {
-            lobes.push((DEFENSIVE * total / (1.0 - DEFENSIVE), Proposal::Cosine));
-        }
-        lobes
+        super::sample::defensive_mixture(self.terms(wo, &mut vec![0.0; channels]))
     }
 
     /// The Dirac reflection at wo per channel (smooth interfaces seen through smooth ones).

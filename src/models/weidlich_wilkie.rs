@@ -28,7 +28,7 @@
 //! single-pass mixture (models/single_pass.rs).
 
 use super::options::{OptionKind, CLAMP_ROUGHNESS, DISTRIBUTIONS, ETA2, FRESNEL, G2_FORMS};
-use super::single_pass::{self, refracted_up, Base, Interface, Passage, SpLayer, Transport, Walk};
+use super::single_pass::{self, refracted_up, Interface, Passage, SpLayer, Transport, Walk};
 use super::{eval_rows, InputSpec, Inputs, Model, ModelInfo, OptionSpec, Options, Properties, Proposal, BLOCK};
 use crate::bsdf;
 use crate::error::{value_error, Result};
@@ -259,7 +259,7 @@ impl Patina {
         let w = self.coverage(mask);
         let mut bare = vec![0.0; out.len()];
         if w < 1.0 {
-            self.bare.eval(model, &self.bare.layers, wi, wo, &[Base { normal, tint: 1.0 }], &mut bare);
+            self.bare.eval(model, &self.bare.layers, wi, wo, normal, &[1.0], &mut bare);
         }
         out.fill(0.0);
         if w > 0.0 {
@@ -302,8 +302,8 @@ impl Patina {
                 SpLayer::Diffuse { albedo, sigma } => SpLayer::Diffuse { albedo: albedo.clone(), sigma: *sigma },
                 SpLayer::Dielectric { .. } => unreachable!("checked in Patina::new"),
             };
-            let tint: Vec<Base> = self.tint.iter().map(|t| Base { normal, tint: lerp(1.0, *t) }).collect();
-            self.patina.eval(model, &[top, base], wi, wo, &tint, out);
+            let tint: Vec<f64> = self.tint.iter().map(|t| lerp(1.0, *t)).collect();
+            self.patina.eval(model, &[top, base], wi, wo, normal, &tint, out);
         }
         for (o, b) in out.iter_mut().zip(&bare) {
             *o = (1.0 - w) * b + w * *o;
