@@ -22,13 +22,12 @@ develop: venv
 	rm -f python/lamina/_lamina.cpython-*.so  # a pre-abi3 build would shadow the abi3 one
 	VIRTUAL_ENV="$(abspath $(VENV))" $(VENV)/bin/maturin develop --release -q
 
+# The main job: the gallery (every layered model beside the reference, error heatmaps; docs/gallery.png and
+# docs/features.png), then a material ball and BRDF slices.
 demo: develop
-	$(VENV)/bin/lamina plot --material gold --out out
-	$(VENV)/bin/lamina plot --material brushed-aluminium --out out
-	$(VENV)/bin/lamina plot --material red-plastic --out out
+	$(VENV)/bin/lamina gallery --out out --docs docs
+	$(VENV)/bin/lamina render --material car-paint --model weidlich_wilkie --out out
 	$(VENV)/bin/lamina plot --material coated-copper --model belcour --out out
-	$(VENV)/bin/lamina plot --material coated-copper --model steinberg --out out
-	$(VENV)/bin/lamina plot --material car-paint --model weidlich_wilkie --out out
 
 # Debian's libLLVM for Mitsuba's llvm_ad_* variants, installed when running as root (CI and dev machines).
 system-deps:
@@ -73,6 +72,7 @@ bench: develop test-deps
 	$(LLVM) $(VPY) benchmarks/bench_layered.py
 	$(LLVM) $(VPY) benchmarks/bench_sampling.py
 	$(VPY) benchmarks/bench_reference.py
+	$(LLVM) $(VPY) benchmarks/bench_render.py
 	$(VPY) benchmarks/bench_memory.py
 	$(VPY) benchmarks/profile.py
 

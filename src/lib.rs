@@ -11,6 +11,7 @@ pub mod models;
 pub mod optics;
 pub mod quadrature;
 pub mod reference;
+pub mod render;
 pub mod sampling;
 pub mod stack;
 pub mod tables;

@@ -14,6 +14,8 @@ from ._lamina import __version__
 from .catalogue import MODELS, models
 from .layers import Conductor, Dielectric, Diffuse
 from .optics import jacobian_reflect, jacobian_refract
+from .pictures import gallery
+from .renderer import DirectionalLight, EnvironmentLight, Mesh, PointLight, read_image, render, save_image, sky
 from .spectrum import RGB_WAVELENGTHS, Spectrum, to_srgb, to_xyz, xyz_weights
 from .stack import Stack
 
@@ -35,4 +37,13 @@ __all__ = [
     "jacobian_reflect",
     "jacobian_refract",
     "__version__",
+    "render",
+    "gallery",
+    "DirectionalLight",
+    "PointLight",
+    "Mesh",
+    "EnvironmentLight",
+    "sky",
+    "save_image",
+    "read_image",
 ]

@@ -27,11 +27,17 @@ __all__ = [
     "pdf_visible",
     "reference_f",
     "reference_sample",
+    "read_image",
+    "read_obj",
     "reference_tally",
+    "render",
     "sample",
     "sample_visible",
+    "sky",
     "specular",
     "steinberg_lut",
+    "write_exr",
+    "write_png",
 ]
 
 MODELS: list[str]
@@ -115,3 +121,24 @@ def belcour_lobes(
     layers: list[dict], ext_ior: float, wo: list[list[float]]
 ) -> tuple[list[list[list[float]]], list[list[list[float]]], list[list[list[float]]]]: ...
 def jacobian(theta_i: _Array, xh: _Array, yh: _Array, eta: _Array | None = None, exact: bool = True) -> _Array: ...
+def render(
+    stacks: list[tuple[list[dict], float]],
+    model: str,
+    options: dict | None,
+    textures: dict[str, _Array] | None,
+    shape: str | tuple,
+    camera: tuple[tuple[float, float, float], tuple[float, float, float], float] | None,
+    lights: list[tuple[str, tuple[float, float, float], tuple[float, float, float]]],
+    env: tuple[_Array, float, float] | None,
+    width: int,
+    height: int,
+    spp: int,
+    seed: int,
+    first: int,
+    rows: int,
+) -> _Array: ...
+def sky(width: int) -> tuple[_Array, list[float], list[float]]: ...
+def read_image(path: str) -> _Array: ...
+def read_obj(path: str) -> tuple[list[list[float]], list[list[float]], list[list[float]], list[list[int]]]: ...
+def write_png(path: str, image: _Array) -> None: ...
+def write_exr(path: str, image: _Array) -> None: ...

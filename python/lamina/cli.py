@@ -1,5 +1,6 @@
-"""Command line: `lamina plot` writes BRDF slices of a preset material as a PNG; `lamina presets` lists them;
-`lamina models` lists the models and their options."""
+"""Command line: `lamina render` renders a material ball (PNG and EXR); `lamina gallery` renders every layered model
+beside the reference with error heatmaps; `lamina plot` writes BRDF slices of a preset material as a PNG;
+`lamina presets` lists them; `lamina models` lists the models and their options."""
 
 from __future__ import annotations
 
@@ -34,6 +35,20 @@ def _parser() -> argparse.ArgumentParser:
         default="0,30,60,80",
         help="incident zenith angles in degrees, comma separated (default: 0,30,60,80)",
     )
+    r = sub.add_parser("render", help="render a material ball under the built-in sky and sun (PNG and EXR)")
+    r.add_argument("--material", default="car-paint", choices=sorted(materials.PRESETS), help="preset material")
+    r.add_argument("--model", default="belcour", choices=MODELS, help="model, or reference (default: belcour)")
+    r.add_argument("--size", type=int, default=256, help="image width and height in pixels (default: 256)")
+    r.add_argument("--spp", type=int, default=64, help="environment samples per pixel (default: 64)")
+    r.add_argument("--seed", type=int, default=0, help="random seed (default: 0)")
+    r.add_argument("--exposure", type=float, default=0.0, help="exposure of the PNG in stops (default: 0)")
+    r.add_argument("--out", default="out", help="output directory (default: out)")
+    g = sub.add_parser("gallery", help="render every layered model beside the reference, with error heatmaps")
+    g.add_argument("--out", default="out", help="output directory (default: out)")
+    g.add_argument("--size", type=int, default=128, help="ball size in pixels (default: 128)")
+    g.add_argument("--spp", type=int, default=32, help="environment samples per pixel of the models (default: 32)")
+    g.add_argument("--reference-spp", type=int, default=64, help="reference walks per pixel and channel (default: 64)")
+    g.add_argument("--docs", default=None, help="also write the PNGs into this folder (make demo: docs)")
     sub.add_parser("presets", help="list the preset materials")
     sub.add_parser("models", help="list the models, their options and per-element inputs")
     return parser
@@ -57,6 +72,37 @@ def _plot(args) -> str:
     return f"wrote {path}"
 
 
+def _render(args) -> str:
+    import time
+
+    from .renderer import render, save_image
+
+    stack = materials.preset(args.material)
+    # Car paint's sparkle: per-element flake normals, which weidlich_wilkie takes.
+    flakes = args.material == "car-paint" and args.model == "weidlich_wilkie"
+    inputs = {"flake_normal": materials.flake_texture()} if flakes else {}
+    start = time.perf_counter()
+    image = render(stack, args.model, width=args.size, height=args.size, spp=args.spp, seed=args.seed, **inputs)
+    seconds = time.perf_counter() - start
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    stem = out / f"{args.material}_{args.model}"
+    save_image(stem.with_suffix(".png"), image, exposure=args.exposure)
+    save_image(stem.with_suffix(".exr"), image)
+    return f"rendered on the CPU in {seconds:.2f} s: wrote {stem}.png and {stem}.exr"
+
+
+def _gallery(args) -> str:
+    try:
+        import matplotlib  # noqa: F401
+
+        from .pictures import write_gallery
+    except ImportError:
+        raise SystemExit("lamina gallery needs matplotlib: pip install lamina[plot]") from None
+    path = write_gallery(args.out, size=args.size, spp=args.spp, reference_spp=args.reference_spp, docs=args.docs)
+    return f"wrote {path}"
+
+
 def main(argv=None) -> int:
     args = _parser().parse_args(argv)
     try:
@@ -69,6 +115,10 @@ def main(argv=None) -> int:
                     print(f"    {o.name} = {o.default!r} ({o.allowed()}): {o.doc}")
                 for i in m.inputs.values():
                     print(f"    per element {i.name}: {i.doc}")
+        elif args.command == "render":
+            print(_render(args))
+        elif args.command == "gallery":
+            print(_gallery(args))
         else:
             print(_plot(args))
     except (ValueError, TypeError) as e:  # bad input: one clear line, no traceback

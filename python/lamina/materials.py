@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from numbers import Real
+from numbers import Integral, Real
 
 import numpy as np
 
@@ -150,6 +150,40 @@ def flake_normals(uv, density: float = 200.0, spread: float = 0.5, seed: int = 0
     return np.stack([r * np.cos(phi), r * np.sin(phi), np.zeros_like(r)], -1)
 
 
+def flake_texture(size: int = 2048, density: float = 600.0, spread: float = 0.3, seed: int = 0) -> np.ndarray:
+    """`flake_normals` sampled at the texel centres of a `size` x `size` texture over uv ∈ [0, 1)²: the
+    `flake_normal` input of car paint for `lamina.render` ((size, size, 3))."""
+    if not isinstance(size, Integral) or isinstance(size, bool) or not 1 <= size <= 16384:
+        raise ValueError(f"size must be an integer in [1, 16384], got {size!r}")
+    t = (np.arange(size) + 0.5) / size
+    return flake_normals(np.stack(np.meshgrid(t, t), -1), density, spread, seed)
+
+
+def patina_mask(size: int = 512, scale: float = 6.0, seed: int = 0) -> np.ndarray:
+    """A grayscale mask (size, size) in [0, 1] for `Patina`: fractal value noise (four octaves of a random grid
+    interpolated by smoothstep, wrapping in u), so that the patina gathers in blotches."""
+    if not isinstance(size, Integral) or isinstance(size, bool) or not 1 <= size <= 16384:
+        raise ValueError(f"size must be an integer in [1, 16384], got {size!r}")
+    if not (isinstance(scale, Real) and 1 <= scale <= 1024):
+        raise ValueError(f"scale must be in [1, 1024], got {scale!r}")
+    rng = np.random.default_rng(seed)
+    t = (np.arange(size) + 0.5) / size
+    total, weight = np.zeros((size, size)), 0.0
+    for octave in range(4):
+        cells = int(round(scale * 2**octave))
+        grid = rng.random((cells + 1, cells))
+        x, y = t * cells, t * cells
+        i, j = np.floor(x).astype(int), np.floor(y).astype(int)
+        fx, fy = x - i, y - j
+        sx, sy = fx * fx * (3 - 2 * fx), fy * fy * (3 - 2 * fy)
+        rows = [grid[np.minimum(j + k, cells)] for k in (0, 1)]  # rows of the grid above and below each texel row
+        top = rows[0][:, i % cells] * (1 - sx) + rows[0][:, (i + 1) % cells] * sx
+        bottom = rows[1][:, i % cells] * (1 - sx) + rows[1][:, (i + 1) % cells] * sx
+        total += 0.5**octave * (top * (1 - sy)[:, None] + bottom * sy[:, None])
+        weight += 0.5**octave
+    return total / weight
+
+
 #: Light wavelengths of Elek's RGB channels in µm, for absorption coefficients 4πκ/λ.
 _RGB_UM = np.asarray(RGB_WAVELENGTHS) / 1000.0
 
@@ -221,6 +255,8 @@ __all__ = [
     "suite",
     "car_paint",
     "flake_normals",
+    "flake_texture",
+    "patina_mask",
     "Patina",
     "patina",
     "metal",

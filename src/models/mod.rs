@@ -155,6 +155,35 @@ pub fn eval_one(model: &dyn Model, wi: DVec3, wo: DVec3, inputs: &[Option<[f64; 
     model.eval_block([&[wi.x], &[wi.y], &[wi.z]], [&[wo.x], &[wo.y], &[wo.z]], &block[..inputs.len()], out);
 }
 
+/// f(wi, wo) for many wi and one wo with one set of per-element input values: out[k] is f at wis[k] (3 channels),
+/// evaluated in blocks of BLOCK rows (a renderer's samples at one pixel).
+pub fn eval_fan(model: &dyn Model, wo: DVec3, inputs: &[Option<[f64; 3]>], wis: &[DVec3], out: &mut [[f64; 3]]) {
+    let mut cols = [[[0.0; BLOCK]; 3]; 2];
+    let inputs_cols: [[[f64; BLOCK]; 3]; MAX_INPUTS] =
+        std::array::from_fn(|j| inputs.get(j).copied().flatten().unwrap_or_default().map(|x| [x; BLOCK]));
+    (0..3).for_each(|c| cols[1][c] = [wo[c]; BLOCK]);
+    let mut f = [0.0; 3 * BLOCK];
+    for (chunk, dst) in wis.chunks(BLOCK).zip(out.chunks_mut(BLOCK)) {
+        let n = chunk.len();
+        for (r, w) in chunk.iter().enumerate() {
+            (0..3).for_each(|c| cols[0][c][r] = w[c]);
+        }
+        let block: [Option<[&[f64]; 3]>; MAX_INPUTS] = std::array::from_fn(|j| {
+            inputs.get(j).copied().flatten().map(|_| inputs_cols[j].each_ref().map(|c| &c[..n]))
+        });
+        f[..3 * n].fill(0.0);
+        model.eval_block(
+            cols[0].each_ref().map(|c| &c[..n]),
+            cols[1].each_ref().map(|c| &c[..n]),
+            &block[..inputs.len()],
+            &mut f[..3 * n],
+        );
+        for (d, v) in dst.iter_mut().zip(f.chunks_exact(3)) {
+            *d = [v[0], v[1], v[2]];
+        }
+    }
+}
+
 /// Row r of a block's direction columns.
 #[inline(always)]
 pub fn row(w: [&[f64]; 3], r: usize) -> DVec3 {

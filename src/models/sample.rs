@@ -66,15 +66,19 @@ pub fn sample(model: &dyn Model, wo: DVec3, u: [f64; 3]) -> (DVec3, f64) {
     if wo.z <= 0.0 {
         return (DVec3::Z, 0.0);
     }
-    let lobes = model.proposals(wo);
+    sample_mixture(&model.proposals(wo), wo, u)
+}
+
+/// `sample` from the mixture `lobes` proposed for wo (a caller that samples one wo many times computes it once).
+pub fn sample_mixture(lobes: &[(f64, Proposal)], wo: DVec3, u: [f64; 3]) -> (DVec3, f64) {
     let total: f64 = lobes.iter().map(|(w, _)| w).sum();
-    if lobes.is_empty() || total <= 0.0 {
+    if lobes.is_empty() || total <= 0.0 || wo.z <= 0.0 {
         return (DVec3::Z, 0.0);
     }
     let (u0, u1, u2) = (u[0].clamp(0.0, 1.0) * total, u[1].clamp(0.0, 1.0), u[2].clamp(0.0, 1.0));
     let mut acc = 0.0;
     let mut chosen = &lobes[lobes.len() - 1].1;
-    for (w, lobe) in &lobes {
+    for (w, lobe) in lobes {
         acc += w;
         if u0 < acc {
             chosen = lobe;
@@ -88,5 +92,5 @@ pub fn sample(model: &dyn Model, wo: DVec3, u: [f64; 3]) -> (DVec3, f64) {
     if wi.z.is_nan() || wi.z <= 0.0 {
         return (wi, 0.0);
     }
-    (wi, mixture_pdf(&lobes, wi, wo))
+    (wi, mixture_pdf(lobes, wi, wo))
 }

@@ -96,6 +96,16 @@ fn prepared(
     options: Option<&Bound<'_, PyDict>>,
 ) -> PyResult<(Stack, Arc<dyn models::Model>, &'static ModelInfo)> {
     let stack = parse_stack(layers, ext_ior)?;
+    let (p, info) = prepared_model(&stack, model, options)?;
+    Ok((stack, p, info))
+}
+
+/// `model` prepared for `stack` with the options given from Python, and its catalogue entry.
+pub fn prepared_model(
+    stack: &Stack,
+    model: &str,
+    options: Option<&Bound<'_, PyDict>>,
+) -> PyResult<(Arc<dyn models::Model>, &'static ModelInfo)> {
     let info = models::info(model)?;
     let mut given = Vec::new();
     for (k, v) in options.into_iter().flat_map(|d| d.iter()) {
@@ -103,8 +113,7 @@ fn prepared(
         given.push((key.clone(), option_value(&key, &v)?));
     }
     let opts = Options::parse(model, info.options, &given)?;
-    let p = models::prepare(model, &stack, &opts)?;
-    Ok((stack, p, info))
+    Ok((models::prepare(model, stack, &opts)?, info))
 }
 
 /// The per-element inputs given for a model: (name, array, check) in the order given, and for each of the model's

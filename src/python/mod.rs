@@ -7,6 +7,7 @@ mod api;
 mod arrays;
 mod primitives;
 mod reference;
+mod render;
 
 use pyo3::prelude::*;
 
@@ -39,5 +40,11 @@ fn _lamina(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(reference::reference_tally, m)?)?;
     m.add_function(wrap_pyfunction!(reference::reference_f, m)?)?;
     m.add_function(wrap_pyfunction!(reference::belcour_lobes, m)?)?;
+    m.add_function(wrap_pyfunction!(render::render, m)?)?;
+    m.add_function(wrap_pyfunction!(render::sky, m)?)?;
+    m.add_function(wrap_pyfunction!(render::read_image, m)?)?;
+    m.add_function(wrap_pyfunction!(render::read_obj, m)?)?;
+    m.add_function(wrap_pyfunction!(render::write_png, m)?)?;
+    m.add_function(wrap_pyfunction!(render::write_exr, m)?)?;
     Ok(())
 }
