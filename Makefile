@@ -5,6 +5,8 @@ VENV := .venv
 VPY := $(VENV)/bin/python
 # Mitsuba's llvm_ad_* variants need a system libLLVM: tests/libllvm.py picks the highest version >= 16 (3.9.1 aborts
 # with LLVM 15); system-deps installs Debian's libllvm19 when root. Without one, the tests use scalar_* variants.
+# The GPU parity tests need a Vulkan adapter: system-deps installs Mesa's lavapipe when root; tests/test_gpu.py
+# fails without one unless LAMINA_SKIP_GPU=1 says to skip it.
 LLVM = DRJIT_LIBLLVM_PATH="$$($(PY) tests/libllvm.py)"
 
 .PHONY: demo test lint wheel-test develop venv test-deps system-deps rust-test py-test bench validation reference reliability fuzz readme chart clean
@@ -34,6 +36,10 @@ system-deps:
 	@if [ "$$(id -u)" = 0 ] && command -v apt-get >/dev/null && [ -z "$$($(PY) tests/libllvm.py)" ]; then \
 		echo "installing libllvm19 for Mitsuba's llvm variants"; \
 		apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq libllvm19 >/dev/null; \
+	fi
+	@if [ "$$(id -u)" = 0 ] && command -v apt-get >/dev/null && ! ls /usr/share/vulkan/icd.d/lvp_icd.*.json >/dev/null 2>&1; then \
+		echo "installing Mesa's lavapipe (Vulkan on the CPU) for the GPU parity tests"; \
+		apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq mesa-vulkan-drivers libvulkan1 >/dev/null; \
 	fi
 
 test-deps: venv system-deps

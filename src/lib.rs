@@ -7,6 +7,8 @@
 
 pub mod bsdf;
 pub mod error;
+#[cfg(feature = "gpu")]
+pub mod gpu;
 pub mod models;
 pub mod optics;
 pub mod quadrature;

@@ -9,6 +9,7 @@ from typing import Sequence
 import numpy as np
 
 from . import _lamina, _reference
+from . import gpu as _gpu
 from ._arrays import broadcast
 from .catalogue import model as _model
 from .catalogue import options_doc
@@ -67,7 +68,16 @@ class Stack:
         return m, options, inputs
 
     def eval(
-        self, wi, wo, model: str = "microfacet", *, wavelengths=None, samples: int = 10_000, seed: int = 0, **kwargs
+        self,
+        wi,
+        wo,
+        model: str = "microfacet",
+        *,
+        wavelengths=None,
+        samples: int = 10_000,
+        seed: int = 0,
+        device: str = "cpu",
+        **kwargs,
     ) -> np.ndarray:
         """The BRDF f(wi, wo), not multiplied by cos θi.
 
@@ -82,12 +92,21 @@ class Stack:
         `samples` paths per pair. Tables are built on the first call and kept for the next calls with the same stack
         and options. Measured against the reference in docs/validation.md.
 
+        device: "cpu" (default); "gpu" evaluates on the GPU (wgpu compute shaders, float32 output; lamina.gpu.models()
+        lists the models it has; RuntimeError without an adapter); "auto" takes a hardware GPU when there is one and
+        the model runs there, else the CPU.
+
         Models, their options (default, allowed values) and per-element inputs:
         """
         m, options, inputs = self._split(model, kwargs)
         if m.name == "reference":
             return self.reference(wi, wo, wavelengths=wavelengths, samples=samples, seed=seed, **options)[0]
         wl = _wavelengths(wavelengths)
+        if _gpu.use_gpu(device, m.name):
+            if inputs:
+                raise ValueError(f"device={device!r}: per-element inputs run on the CPU only; use device='cpu'")
+            wi, wo = broadcast(wi=(wi, 3), wo=(wo, 3))
+            return _lamina.eval_gpu(self._resolve(wl), self.ext_ior, m.name, wi, wo, options)
         arrays = broadcast(wi=(wi, 3), wo=(wo, 3), **inputs)
         named = dict(zip(inputs, arrays[2:]))
         return _lamina.eval(self._resolve(wl), self.ext_ior, m.name, arrays[0], arrays[1], options, named)

@@ -196,6 +196,6 @@ fn geometry(mf: &Microfacet, form: G2Form, wi: [&[f64]; 3], wo: [&[f64]; 3], geo
 /// Mitsuba's `plastic` with nonlinear = true, Weidlich–Wilkie 2007 §3):
 /// f = ρ (1 − F(θi)) (1 − F(θo)) / (π η² (1 − ρ F̄_int)), F̄_int the hemispherical Fresnel reflectance from inside.
 pub fn smooth_coat_lambert(albedo: f64, eta: f64, f_int: f64, cos_i: f64, cos_o: f64) -> f64 {
-    let t = (1.0 - fresnel::dielectric(cos_i, eta)) * (1.0 - fresnel::dielectric(cos_o, eta));
+    let t = fresnel::dielectric_transmittance(cos_i, eta) * fresnel::dielectric_transmittance(cos_o, eta);
     albedo * t * FRAC_1_PI / (eta * eta * (1.0 - albedo * f_int))
 }

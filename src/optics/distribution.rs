@@ -55,6 +55,11 @@ impl Microfacet {
         Self { cos_phi, sin_phi, ..self.with_alpha(alpha_x, alpha_y) }
     }
 
+    /// (cos, sin) of the rotation of the tangent frame.
+    pub fn frame(&self) -> (f64, f64) {
+        (self.cos_phi, self.sin_phi)
+    }
+
     /// True when both roughnesses are zero: the interface is a perfectly smooth (Dirac) one, whose reflection and
     /// refraction are delta lobes that a BSDF evaluation does not return.
     pub fn is_smooth(&self) -> bool {

@@ -18,6 +18,22 @@ pub fn dielectric(cos_i: f64, eta: f64) -> f64 {
     0.5 * (r_s * r_s + r_p * r_p)
 }
 
+/// Transmittance 1 − F of `dielectric`, in a form without cancellation near grazing incidence (where F → 1):
+/// 1 − r² = (1 − r)(1 + r) for each polarization, T_s = 4η cos_i cos_t / (cos_i + η cos_t)²,
+/// T_p = 4η cos_i cos_t / (η cos_i + cos_t)². 0 under total internal reflection.
+#[inline(always)]
+pub fn dielectric_transmittance(cos_i: f64, eta: f64) -> f64 {
+    let (cos_i, eta) = if cos_i < 0.0 { (-cos_i, 1.0 / eta) } else { (cos_i, eta) };
+    let cos_i = cos_i.min(1.0);
+    let sin2_t = (1.0 - cos_i * cos_i) / (eta * eta);
+    if sin2_t >= 1.0 {
+        return 0.0;
+    }
+    let cos_t = (1.0 - sin2_t).sqrt();
+    let (s, p) = (cos_i + eta * cos_t, eta * cos_i + cos_t);
+    2.0 * eta * cos_i * cos_t * (1.0 / (s * s) + 1.0 / (p * p))
+}
+
 /// Exact unpolarized conductor Fresnel reflectance for the relative complex IOR `eta` + i`k`
 /// (closed form of the Fresnel equations, e.g. Lagarde 2013 / Born & Wolf §14.2). `cos_i` in [0, 1].
 #[inline(always)]
@@ -102,6 +118,17 @@ impl FresnelForm {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn transmittance_is_one_minus_reflectance() {
+        for eta in [0.5, 1.0 / 1.5, 1.0, 1.33, 1.5, 2.4] {
+            for k in 0..=200 {
+                let cos_i = -1.0 + 2.0 * k as f64 / 200.0;
+                let (t, r) = (dielectric_transmittance(cos_i, eta), dielectric(cos_i, eta));
+                assert!((t - (1.0 - r)).abs() < 1e-14, "eta {eta} cos {cos_i}: {t} vs 1 - {r}");
+            }
+        }
+    }
 
     #[test]
     fn dielectric_limits() {

@@ -106,14 +106,19 @@ pub fn prepared_model(
     model: &str,
     options: Option<&Bound<'_, PyDict>>,
 ) -> PyResult<(Arc<dyn models::Model>, &'static ModelInfo)> {
+    let (opts, info) = parse_options(model, options)?;
+    Ok((models::prepare(model, stack, &opts)?, info))
+}
+
+/// `model`'s options from a Python dict, checked against its catalogue entry.
+pub fn parse_options(model: &str, options: Option<&Bound<'_, PyDict>>) -> PyResult<(Options, &'static ModelInfo)> {
     let info = models::info(model)?;
     let mut given = Vec::new();
     for (k, v) in options.into_iter().flat_map(|d| d.iter()) {
         let key: String = k.extract()?;
         given.push((key.clone(), option_value(&key, &v)?));
     }
-    let opts = Options::parse(model, info.options, &given)?;
-    Ok((models::prepare(model, stack, &opts)?, info))
+    Ok((Options::parse(model, info.options, &given)?, info))
 }
 
 /// The per-element inputs given for a model: (name, array, check) in the order given, and for each of the model's

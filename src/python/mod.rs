@@ -5,6 +5,8 @@
 
 mod api;
 mod arrays;
+#[cfg(feature = "gpu")]
+mod gpu;
 mod primitives;
 mod reference;
 mod render;
@@ -40,6 +42,12 @@ fn _lamina(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(reference::reference_tally, m)?)?;
     m.add_function(wrap_pyfunction!(reference::reference_f, m)?)?;
     m.add_function(wrap_pyfunction!(reference::belcour_lobes, m)?)?;
+    #[cfg(feature = "gpu")]
+    {
+        m.add_function(wrap_pyfunction!(gpu::gpu_adapter, m)?)?;
+        m.add_function(wrap_pyfunction!(gpu::gpu_models, m)?)?;
+        m.add_function(wrap_pyfunction!(gpu::eval_gpu, m)?)?;
+    }
     m.add_function(wrap_pyfunction!(render::render, m)?)?;
     m.add_function(wrap_pyfunction!(render::sky, m)?)?;
     m.add_function(wrap_pyfunction!(render::read_image, m)?)?;

@@ -176,7 +176,37 @@ impl Model for Prepared {
     }
 }
 
+/// What the GPU evaluator (src/gpu, shaders/belcour.wgsl) needs of a tabulated stack: the table's shape and
+/// arrays, and the diffuse base as (albedo, R̄↑) per channel and η.
+pub struct GpuData<'a> {
+    /// lobes, nodes, azimuths, width, channels.
+    pub shape: [usize; 5],
+    pub record: &'a [f64],
+    pub t_down: &'a [f64],
+    pub t_up: &'a [f64],
+    pub g2: G2Form,
+    pub symmetric: bool,
+    pub diffuse: Option<(Vec<[f64; 2]>, f64)>,
+}
+
 impl Prepared {
+    /// The table and parameters for the GPU; None without a table (`tabulated=False` runs on the CPU only).
+    pub fn gpu_data(&self) -> Option<GpuData<'_>> {
+        let t = self.table.as_ref()?;
+        Some(GpuData {
+            shape: [t.lobes, t.nodes, t.azimuths, t.width, self.channels],
+            record: &t.record,
+            t_down: &t.t_down,
+            t_up: &t.t_up,
+            g2: self.g2,
+            symmetric: self.symmetric,
+            diffuse: self
+                .diffuse
+                .as_ref()
+                .map(|d| (d.albedo.iter().zip(&d.r_up).map(|(a, r)| [*a, *r]).collect(), d.eta)),
+        })
+    }
+
     /// The lobes for a viewing direction `wo` (unit, above the surface).
     pub fn lobes(&self, wo: DVec3) -> Vec<Lobe> {
         let (cos_phi, sin_phi) = azimuth(wo);

@@ -1,0 +1,52 @@
+"""The GPU: which adapter lamina uses, and how a `device=` argument resolves. The wgpu path evaluates BRDFs as WGSL
+compute shaders in float32 (src/gpu); it finds a GPU through Vulkan, or Mesa's lavapipe on machines without one."""
+
+from __future__ import annotations
+
+import os
+import sys
+import tempfile
+from functools import lru_cache
+
+from . import _lamina
+
+DEVICES = ("cpu", "gpu", "auto")
+
+
+@lru_cache(maxsize=1)
+def _adapter() -> tuple[dict | None, str]:
+    if not hasattr(_lamina, "gpu_adapter"):
+        return None, "this build of lamina has no GPU path (built without the 'gpu' feature)"
+    if sys.platform.startswith("linux") and "XDG_RUNTIME_DIR" not in os.environ:
+        # Mesa's Vulkan drivers print an error at exit on headless machines without it.
+        os.environ["XDG_RUNTIME_DIR"] = tempfile.mkdtemp(prefix="lamina-xdg-")
+    try:
+        return dict(_lamina.gpu_adapter()), ""
+    except RuntimeError as e:
+        return None, str(e)
+
+
+def adapter() -> dict | None:
+    """The adapter lamina evaluates on with device="gpu": {"name", "device_type" (DiscreteGpu, IntegratedGpu,
+    VirtualGpu or Cpu for lavapipe), "backend", "driver"}, or None when there is none."""
+    return _adapter()[0]
+
+
+def models() -> list[str]:
+    """The models with a GPU implementation."""
+    return list(_lamina.gpu_models()) if hasattr(_lamina, "gpu_models") else []
+
+
+def use_gpu(device: str, model: str) -> bool:
+    """Whether `device` means the GPU for `model`: "gpu" always (RuntimeError when there is no adapter, saying how to
+    get one), "auto" when there is a hardware GPU (not lavapipe) and the model runs on it, "cpu" never."""
+    if device not in DEVICES:
+        raise ValueError(f"device must be one of {DEVICES}, got {device!r}")
+    if device == "cpu":
+        return False
+    info, why = _adapter()
+    if device == "gpu":
+        if info is None:
+            raise RuntimeError(f"device='gpu': {why}")
+        return True
+    return info is not None and info["device_type"] != "Cpu" and model in models()

@@ -1,0 +1,338 @@
+//! The wgpu path: BRDF evaluation as WGSL compute shaders, in float32. The WGSL primitives (`shaders/optics.wgsl`)
+//! mirror the Rust optics core function by function; each model's shader is composed after them (`compose`).
+//! `cargo test` validates every composed shader with naga, without a GPU; tests/test_gpu.py checks parity with the
+//! CPU on a real adapter (lavapipe in CI).
+//!
+//! Models on the GPU so far: `microfacet` (every option) and `belcour` (tabulated, every other option). A model's
+//! tables are uploaded once per stack and options and kept (`uploaded`). Inputs of any length are split into
+//! dispatches of at most CHUNK pairs.
+
+use crate::error::{value_error, Error, Result};
+use crate::models::{belcour, microfacet, Options};
+use crate::optics::distribution::{Distribution, G2Form, Microfacet};
+use crate::optics::fresnel::FresnelForm;
+use crate::stack::Stack;
+use std::sync::{Arc, Mutex, OnceLock};
+use wgpu::util::DeviceExt;
+
+/// The shared primitives.
+pub const OPTICS: &str = include_str!("shaders/optics.wgsl");
+/// The models' shaders, by model name: each is composed after OPTICS.
+pub const MODELS: &[(&str, &str)] =
+    &[("microfacet", include_str!("shaders/microfacet.wgsl")), ("belcour", include_str!("shaders/belcour.wgsl"))];
+
+/// A model's complete shader source: the primitives, then the model.
+pub fn compose(model: &str) -> Option<String> {
+    MODELS.iter().find(|(name, _)| *name == model).map(|(_, src)| format!("{OPTICS}\n{src}"))
+}
+
+/// Whether a model has a GPU implementation.
+pub fn supports(model: &str) -> bool {
+    MODELS.iter().any(|(name, _)| *name == model)
+}
+
+/// Pairs per dispatch: 2^21 (32768 workgroups of 64, within every adapter's dispatch limit).
+const CHUNK: usize = 1 << 21;
+
+/// The adapter, its device and one compute pipeline per model (in the order of MODELS).
+pub struct Gpu {
+    pub info: wgpu::AdapterInfo,
+    device: wgpu::Device,
+    queue: wgpu::Queue,
+    pipelines: Vec<wgpu::ComputePipeline>,
+}
+
+/// How to get an adapter, for the error when there is none.
+const NO_ADAPTER: &str = "no GPU adapter found through wgpu (Vulkan). Install a Vulkan driver for your GPU; on a \
+    machine without one, Mesa's lavapipe (Debian/Ubuntu: apt install mesa-vulkan-drivers) is a CPU adapter";
+
+/// The process's GPU, created on first use (the best adapter: a discrete or integrated GPU before a CPU one).
+pub fn gpu() -> Result<&'static Gpu> {
+    static GPU: OnceLock<std::result::Result<Gpu, String>> = OnceLock::new();
+    GPU.get_or_init(|| pollster::block_on(create())).as_ref().map_err(|e| Error::Value(e.clone()))
+}
+
+async fn create() -> std::result::Result<Gpu, String> {
+    let instance = wgpu::Instance::new(wgpu::InstanceDescriptor {
+        backends: wgpu::Backends::VULKAN,
+        ..wgpu::InstanceDescriptor::new_without_display_handle()
+    });
+    let mut adapters = instance.enumerate_adapters(wgpu::Backends::VULKAN).await;
+    // Hardware first: discrete, integrated, virtual, then CPU (lavapipe).
+    let rank = |t: wgpu::DeviceType| match t {
+        wgpu::DeviceType::DiscreteGpu => 0,
+        wgpu::DeviceType::IntegratedGpu => 1,
+        wgpu::DeviceType::VirtualGpu => 2,
+        wgpu::DeviceType::Cpu => 3,
+        wgpu::DeviceType::Other => 4,
+    };
+    adapters.sort_by_key(|a| rank(a.get_info().device_type));
+    let adapter = adapters.into_iter().next().ok_or_else(|| NO_ADAPTER.to_string())?;
+    let limits = adapter.limits();
+    let (device, queue) = adapter
+        .request_device(&wgpu::DeviceDescriptor {
+            label: Some("lamina"),
+            required_limits: limits,
+            ..Default::default()
+        })
+        .await
+        .map_err(|e| format!("the GPU adapter refused a device: {e}"))?;
+    let pipelines = MODELS
+        .iter()
+        .map(|(name, _)| {
+            let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
+                label: Some(name),
+                source: wgpu::ShaderSource::Wgsl(compose(name).expect("listed").into()),
+            });
+            device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+                label: Some(name),
+                layout: None,
+                module: &module,
+                entry_point: Some("main"),
+                compilation_options: Default::default(),
+                cache: None,
+            })
+        })
+        .collect();
+    Ok(Gpu { info: adapter.get_info(), device, queue, pipelines })
+}
+
+/// A model prepared for the GPU: its shader's parameters (uniform words; the pair count is set per dispatch at
+/// `count_word`), its read-only arrays (tables, per-channel constants) and the channel count.
+pub struct Kernel {
+    pub model: &'static str,
+    pub words: Vec<u32>,
+    pub count_word: usize,
+    pub arrays: Vec<Vec<f32>>,
+    pub channels: usize,
+}
+
+fn g2_code(g2: G2Form) -> u32 {
+    match g2 {
+        G2Form::Separable => 0,
+        G2Form::HeightCorrelated => 1,
+        G2Form::VCavity => 2,
+    }
+}
+
+/// The microfacet kernel: 16 words in the layout of `Params` in microfacet.wgsl, and per channel (eta, k, albedo,
+/// f_int).
+pub fn microfacet_kernel(p: &microfacet::Prepared) -> Kernel {
+    use microfacet::Prepared;
+    let smooth = Microfacet::new(Distribution::Ggx, 0.0, 0.0, 0.0);
+    let (kind, mf, g2, fresnel, sigma, channels): (u32, &Microfacet, G2Form, FresnelForm, f64, Vec<[f64; 4]>) = match p
+    {
+        Prepared::Conductor { mf, g2, fresnel, eta, k } => {
+            (0, mf, *g2, *fresnel, 0.0, eta.iter().zip(k).map(|(e, k)| [*e, *k, 0.0, 0.0]).collect())
+        }
+        Prepared::Diffuse { albedo, sigma } => {
+            let rows = albedo.iter().map(|a| [0.0, 0.0, *a, 0.0]).collect();
+            (1, &smooth, G2Form::Separable, FresnelForm::Exact, *sigma, rows)
+        }
+        Prepared::CoatLambert { albedo, eta, f_int } => {
+            let rows = (0..albedo.len()).map(|c| [eta[c], 0.0, albedo[c], f_int[c]]).collect();
+            (2, &smooth, G2Form::Separable, FresnelForm::Exact, 0.0, rows)
+        }
+    };
+    let (cos_phi, sin_phi) = mf.frame();
+    let fresnel = match fresnel {
+        FresnelForm::Exact => 0,
+        FresnelForm::Schlick => 1,
+        FresnelForm::Lazanyi => 2,
+    };
+    let dist = match mf.dist {
+        Distribution::Ggx => 0,
+        Distribution::Beckmann => 1,
+    };
+    let f = |x: f64| (x as f32).to_bits();
+    let words = vec![
+        kind,
+        g2_code(g2),
+        fresnel,
+        channels.len() as u32,
+        0,
+        f(sigma),
+        0,
+        0,
+        dist,
+        mf.is_smooth() as u32,
+        f(mf.alpha_x),
+        f(mf.alpha_y),
+        f(cos_phi),
+        f(sin_phi),
+        0,
+        0,
+    ];
+    let c = channels.len();
+    Kernel {
+        model: "microfacet",
+        words,
+        count_word: 4,
+        arrays: vec![channels.into_iter().flatten().map(|x| x as f32).collect()],
+        channels: c,
+    }
+}
+
+/// The Belcour kernel: 12 words in the layout of `Params` in belcour.wgsl, the table and the diffuse base.
+pub fn belcour_kernel(p: &belcour::Prepared) -> Result<Kernel> {
+    let Some(d) = p.gpu_data() else {
+        return value_error("model 'belcour' with tabulated=False runs on the CPU only; use device='cpu'");
+    };
+    let [lobes, nodes, azimuths, width, channels] = d.shape.map(|x| x as u32);
+    let (diffuse, eta) = d.diffuse.unwrap_or((vec![], 1.0));
+    let f32s = |v: &[f64]| v.iter().map(|&x| x as f32).collect::<Vec<f32>>();
+    let words = vec![
+        0,
+        channels,
+        lobes,
+        nodes,
+        azimuths,
+        width,
+        g2_code(d.g2),
+        d.symmetric as u32,
+        !diffuse.is_empty() as u32,
+        (eta as f32).to_bits(),
+        0,
+        0,
+    ];
+    // Storage buffers may not be empty: a stack without a diffuse base gets one unused row.
+    let diffuse: Vec<f32> =
+        if diffuse.is_empty() { vec![0.0; 2] } else { diffuse.iter().flatten().map(|&x| x as f32).collect() };
+    Ok(Kernel {
+        model: "belcour",
+        words,
+        count_word: 0,
+        arrays: vec![f32s(d.record), f32s(d.t_down), f32s(d.t_up), diffuse],
+        channels: channels as usize,
+    })
+}
+
+/// A prepared model's kernel, or why it does not run on the GPU.
+pub fn kernel(model: &str, stack: &Stack, opts: &Options) -> Result<Kernel> {
+    match model {
+        "microfacet" => Ok(microfacet_kernel(&microfacet::prepare(stack, opts)?)),
+        "belcour" => belcour_kernel(&belcour::prepare(stack, opts)?),
+        _ => value_error(format!(
+            "model {model:?} has no GPU implementation yet (GPU models: {:?}); use device='cpu'",
+            MODELS.iter().map(|m| m.0).collect::<Vec<_>>()
+        )),
+    }
+}
+
+/// A kernel with its arrays uploaded to the device.
+struct Uploaded {
+    kernel: Kernel,
+    arrays: Vec<wgpu::Buffer>,
+}
+
+const CACHED: usize = 16;
+
+/// `model` prepared for `stack` and `opts` on the device: kept for the next calls with equal arguments (as the CPU
+/// keeps its prepared models), so that tables are built and uploaded once.
+fn upload(gpu: &Gpu, model: &str, stack: &Stack, opts: &Options) -> Result<Arc<Uploaded>> {
+    static CACHE: Mutex<Vec<(String, Arc<Uploaded>)>> = Mutex::new(Vec::new());
+    // Debug prints every f64 in its shortest round-trip form: equal keys mean equal arguments (models::prepare).
+    let key = format!("{model}|{stack:?}|{opts:?}");
+    let mut cache = CACHE.lock().unwrap_or_else(|e| e.into_inner());
+    if let Some(k) = cache.iter().position(|(k, _)| *k == key) {
+        let entry = cache.remove(k);
+        let found = entry.1.clone();
+        cache.insert(0, entry);
+        return Ok(found);
+    }
+    let kernel = kernel(model, stack, opts)?;
+    let arrays = kernel
+        .arrays
+        .iter()
+        .map(|a| {
+            gpu.device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some("table"),
+                contents: bytemuck::cast_slice(a),
+                usage: wgpu::BufferUsages::STORAGE,
+            })
+        })
+        .collect();
+    let up = Arc::new(Uploaded { kernel, arrays });
+    cache.insert(0, (key, up.clone()));
+    cache.truncate(CACHED);
+    Ok(up)
+}
+
+/// f of `model` for n pairs given as float32 rows (wi.xyz, wo.xyz), unit directions: n·channels float32 values.
+pub fn eval(model: &str, stack: &Stack, opts: &Options, pairs: &[f32]) -> Result<Vec<f32>> {
+    if !pairs.len().is_multiple_of(6) {
+        return value_error("pairs must be float32 (n, 6) rows of wi and wo");
+    }
+    let gpu = gpu()?;
+    let arrays = upload(gpu, model, stack, opts)?;
+    let kernel = &arrays.kernel;
+    let pipeline = &gpu.pipelines[MODELS.iter().position(|m| m.0 == kernel.model).expect("a listed model")];
+    let (c, n) = (kernel.channels, pairs.len() / 6);
+    let mut out = vec![0f32; n * c];
+    let device = &gpu.device;
+    let chunk = CHUNK.min((device.limits().max_storage_buffer_binding_size as usize / (4 * c.max(6))).max(64));
+    let mut words = kernel.words.clone();
+    for (start, dst) in (0..n).step_by(chunk).zip(out.chunks_mut(chunk * c)) {
+        let m = chunk.min(n - start);
+        words[kernel.count_word] = m as u32;
+        let init = |label, contents: &[u8], usage| {
+            device.create_buffer_init(&wgpu::util::BufferInitDescriptor { label: Some(label), contents, usage })
+        };
+        let params = init("params", bytemuck::cast_slice(&words), wgpu::BufferUsages::UNIFORM);
+        let pair_buf =
+            init("pairs", bytemuck::cast_slice(&pairs[6 * start..6 * (start + m)]), wgpu::BufferUsages::STORAGE);
+        let size = (4 * m * c) as u64;
+        let buffer = |label, usage| {
+            device.create_buffer(&wgpu::BufferDescriptor { label: Some(label), size, usage, mapped_at_creation: false })
+        };
+        let out_buf = buffer("f", wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC);
+        let read = buffer("readback", wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST);
+        let layout = pipeline.get_bind_group_layout(0);
+        let buffers: Vec<&wgpu::Buffer> =
+            std::iter::once(&params).chain(&arrays.arrays).chain([&pair_buf, &out_buf]).collect();
+        let entries: Vec<wgpu::BindGroupEntry> = buffers
+            .iter()
+            .enumerate()
+            .map(|(k, b)| wgpu::BindGroupEntry { binding: k as u32, resource: b.as_entire_binding() })
+            .collect();
+        let bind =
+            device.create_bind_group(&wgpu::BindGroupDescriptor { label: None, layout: &layout, entries: &entries });
+        let mut encoder = device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: None });
+        {
+            let mut pass =
+                encoder.begin_compute_pass(&wgpu::ComputePassDescriptor { label: None, timestamp_writes: None });
+            pass.set_pipeline(pipeline);
+            pass.set_bind_group(0, &bind, &[]);
+            pass.dispatch_workgroups(m.div_ceil(64) as u32, 1, 1);
+        }
+        encoder.copy_buffer_to_buffer(&out_buf, 0, &read, 0, size);
+        gpu.queue.submit([encoder.finish()]);
+        let slice = read.slice(..);
+        slice.map_async(wgpu::MapMode::Read, |_| {});
+        device.poll(wgpu::PollType::wait_indefinitely()).map_err(|e| Error::Value(format!("GPU: {e}")))?;
+        let view = slice.get_mapped_range().map_err(|e| Error::Value(format!("GPU: {e}")))?;
+        dst[..m * c].copy_from_slice(bytemuck::cast_slice(&view));
+    }
+    Ok(out)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn every_shader_is_valid_wgsl() {
+        // naga parses and validates each composed module as wgpu would, without a GPU.
+        for (name, _) in MODELS {
+            let src = compose(name).unwrap();
+            let module = wgpu::naga::front::wgsl::parse_str(&src)
+                .unwrap_or_else(|e| panic!("{name}: {}", e.emit_to_string(&src)));
+            wgpu::naga::valid::Validator::new(
+                wgpu::naga::valid::ValidationFlags::all(),
+                wgpu::naga::valid::Capabilities::all(),
+            )
+            .validate(&module)
+            .unwrap_or_else(|e| panic!("{name}: {e:?}"));
+        }
+    }
+}

@@ -1,0 +1,212 @@
+// model="belcour" on the GPU (src/models/belcour): the tabulated adding-doubling interpolated per pair, one GGX lobe
+// per interface and the diffuse base, as the CPU's block evaluator (table.rs) does. Composed after optics.wgsl.
+
+struct Params {
+    n: u32,
+    channels: u32,
+    lobes: u32,
+    nodes: u32,
+    azimuths: u32,
+    width: u32,
+    g2: u32,
+    symmetric: u32,
+    has_diffuse: u32,
+    diffuse_eta: f32,
+    pad0: u32,
+    pad1: u32,
+}
+
+@group(0) @binding(0) var<uniform> params: Params;
+// [node][azimuth][lobe][width]: roughness (1 value, or the roughness matrix xx, xy, yy), then energy per channel.
+@group(0) @binding(1) var<storage, read> record: array<f32>;
+// [node][azimuth][channel]: energy transmitted down to the base and up from it.
+@group(0) @binding(2) var<storage, read> t_down: array<f32>;
+@group(0) @binding(3) var<storage, read> t_up: array<f32>;
+// Per channel: (albedo, R̄↑) of the diffuse base.
+@group(0) @binding(4) var<storage, read> diffuse: array<vec2<f32>>;
+@group(0) @binding(5) var<storage, read> pairs: array<f32>;
+@group(0) @binding(6) var<storage, read_write> out: array<f32>;
+
+const FRAC_PI_2: f32 = 1.5707963267949;
+const FRAC_PI_4: f32 = 0.785398163397448;
+const MIN_ALPHA: f32 = 1e-4;
+
+// table::pseudo_angle: a monotonic stand-in for the azimuth modulo π (Rajan et al. 2006), in [0, π).
+fn pseudo_angle(x_in: f32, y_in: f32) -> f32 {
+    var x = x_in;
+    var y = y_in;
+    if y < 0.0 {
+        x = -x;
+        y = -y;
+    }
+    let big = max(abs(x), y);
+    if big == 0.0 {
+        return 0.0;
+    }
+    let t = min(abs(x), y) / big;
+    var a = t * (FRAC_PI_4 + 0.273 * (1.0 - t));
+    if y > abs(x) {
+        a = FRAC_PI_2 - a;
+    }
+    var p = a;
+    if x < 0.0 {
+        p = PI - a;
+    }
+    if p >= PI {
+        return 0.0;
+    }
+    return p;
+}
+
+struct Node {
+    i: i32,
+    f: f32,
+}
+
+// tables::node: lower node and fraction of x on n uniform nodes over [0, 1], clamped.
+fn table_node(x: f32, n: u32) -> Node {
+    let s = clamp(x, 0.0, 1.0) * f32(n - 1u);
+    let i = min(i32(s), i32(n) - 2);
+    return Node(i, s - f32(i));
+}
+
+struct Corners {
+    index: vec4<i32>,
+    weight: vec4<f32>,
+}
+
+// Prepared::corners: bilinear corners in √cos θ and the azimuth's pseudo-angle (isotropic tables: two corners).
+fn corners(cos_theta: f32, x: f32, y: f32) -> Corners {
+    let az = i32(params.azimuths);
+    var v = 0.0;
+    if az > 1 {
+        v = pseudo_angle(x, y) * (FRAC_1_PI * f32(az));
+    }
+    let node = table_node(sqrt(clamp(cos_theta, 0.0, 1.0)), params.nodes);
+    let k = node.i;
+    let fk = node.f;
+    let a = min(i32(v), az - 1);
+    let fa = v - f32(a);
+    var b = a + 1;
+    if b == az {
+        b = 0;
+    }
+    return Corners(
+        vec4<i32>(k * az + a, (k + 1) * az + a, k * az + b, (k + 1) * az + b),
+        vec4<f32>((1.0 - fk) * (1.0 - fa), fk * (1.0 - fa), (1.0 - fk) * fa, fk * fa),
+    );
+}
+
+// Cov::eigen_frame: (λ1, λ2, cos, sin) of a symmetric 2x2 matrix, the eigenvector of λ1 ≥ λ2 as (cos, sin).
+fn eigen_frame(xx: f32, xy: f32, yy: f32) -> vec4<f32> {
+    let mean = 0.5 * (xx + yy);
+    let half = 0.5 * (xx - yy);
+    let r = sqrt(half * half + xy * xy);
+    var x = xy;
+    var y = r - half;
+    if half >= 0.0 {
+        x = half + r;
+        y = xy;
+    }
+    if x < 0.0 {
+        x = -x;
+        y = -y;
+    }
+    let len = sqrt(x * x + y * y);
+    if r > 0.0 {
+        return vec4<f32>(mean + r, mean - r, x / len, y / len);
+    }
+    return vec4<f32>(mean, mean, 1.0, 0.0);
+}
+
+// Microfacet::with_frame: GGX of roughness (αx, αy) along the frame (cos, sin); (0, 0) is a Dirac interface.
+fn ggx(ax: f32, ay: f32, cos_phi: f32, sin_phi: f32) -> Microfacet {
+    return Microfacet(0u, u32(ax == 0.0 && ay == 0.0), max(ax, MIN_ALPHA), max(ay, MIN_ALPHA), cos_phi, sin_phi);
+}
+
+// symmetric_cosine: |wo·h| (Belcour 2018 §6), wo·n where wi + wo is too short to normalise.
+fn symmetric_cosine(wi: vec3<f32>, wo: vec3<f32>) -> f32 {
+    let s = wi + wo;
+    if dot(s, s) == 0.0 {
+        return wo.z;
+    }
+    return abs(dot(wo, normalize(s)));
+}
+
+// The value at `offset` of a record (lobe j's values at offset j·width + i), interpolated at the corners.
+fn interpolate(c: Corners, offset: u32) -> f32 {
+    let w = params.lobes * params.width;
+    var v = 0.0;
+    for (var q = 0; q < 4; q++) {
+        v += c.weight[q] * record[u32(c.index[q]) * w + offset];
+    }
+    return v;
+}
+
+// T↓ or T↑ of channel ch at the corners.
+fn transmitted(c: Corners, down: bool, ch: u32) -> f32 {
+    var v = 0.0;
+    for (var q = 0; q < 4; q++) {
+        let k = u32(c.index[q]) * params.channels + ch;
+        v += c.weight[q] * select(t_up[k], t_down[k], down);
+    }
+    return v;
+}
+
+fn load(i: u32, which: u32) -> vec3<f32> {
+    let k = 6u * i + 3u * which;
+    return vec3<f32>(pairs[k], pairs[k + 1u], pairs[k + 2u]);
+}
+
+@compute @workgroup_size(64)
+fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
+    let i = gid.x;
+    if i >= params.n {
+        return;
+    }
+    let wi = load(i, 0u);
+    let wo = load(i, 1u);
+    let base = i * params.channels;
+    for (var ch = 0u; ch < params.channels; ch++) {
+        out[base + ch] = 0.0;
+    }
+    if wi.z <= 0.0 || wo.z <= 0.0 {
+        return;
+    }
+    var cos_theta = wo.z;
+    if params.symmetric != 0u {
+        cos_theta = symmetric_cosine(wi, wo);
+    }
+    let c = corners(cos_theta, wo.x, wo.y);
+    let anisotropic = params.azimuths > 1u;
+    for (var j = 0u; j < params.lobes; j++) {
+        let at = j * params.width;
+        var mf: Microfacet;
+        var first = 1u;
+        if anisotropic {
+            let e = eigen_frame(interpolate(c, at), interpolate(c, at + 1u), interpolate(c, at + 2u));
+            mf = ggx(e.x, e.y, e.z, e.w);
+            first = 3u;
+        } else {
+            let a = interpolate(c, at);
+            mf = ggx(a, a, 1.0, 0.0);
+        }
+        let shape = reflection_geometry(mf, params.g2, wi, wo).x;
+        for (var ch = 0u; ch < params.channels; ch++) {
+            out[base + ch] += interpolate(c, at + first + ch) * shape;
+        }
+    }
+    if params.has_diffuse != 0u {
+        // Prepared::add_diffuse: ρ/π · T↓(θi) T↑(θo) / ((1 − ρ R̄↑) η²).
+        let down = corners(wi.z, wi.x, wi.y);
+        var up = c;
+        if params.symmetric != 0u {
+            up = corners(wo.z, wo.x, wo.y);
+        }
+        let eta2 = params.diffuse_eta * params.diffuse_eta;
+        for (var ch = 0u; ch < params.channels; ch++) {
+            let d = diffuse[ch];
+            out[base + ch] += d.x * FRAC_1_PI * transmitted(down, true, ch) * transmitted(up, false, ch) / ((1.0 - d.x * d.y) * eta2);
+        }
+    }
+}

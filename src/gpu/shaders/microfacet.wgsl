@@ -1,0 +1,58 @@
+// model="microfacet" on the GPU (src/models/microfacet.rs): a rough conductor, Lambert / Oren–Nayar, or a smooth
+// coat over Lambert, f(wi, wo) for n direction pairs and every channel. Composed after optics.wgsl.
+
+struct Params {
+    kind: u32,      // 0 conductor, 1 diffuse, 2 smooth coat over Lambert
+    g2: u32,        // Microfacet::g2 form
+    fresnel: u32,   // FresnelForm
+    channels: u32,
+    n: u32,         // pairs in this dispatch
+    sigma: f32,     // Oren–Nayar σ (kind 1)
+    pad0: u32,
+    pad1: u32,
+    mf: Microfacet,
+}
+
+@group(0) @binding(0) var<uniform> params: Params;
+// Per channel: (eta, k, albedo, f_int): the Prepared variant's values (unused ones 0).
+@group(0) @binding(1) var<storage, read> channel: array<vec4<f32>>;
+// Per pair: wi then wo (xyz each, unit).
+@group(0) @binding(2) var<storage, read> pairs: array<f32>;
+@group(0) @binding(3) var<storage, read_write> out: array<f32>;
+
+// microfacet::smooth_coat_lambert: smooth dielectric coat over Lambert, all internal bounces (Weidlich–Wilkie 2007).
+fn smooth_coat_lambert(albedo: f32, eta: f32, f_int: f32, cos_i: f32, cos_o: f32) -> f32 {
+    let t = fresnel_dielectric_transmittance(cos_i, eta) * fresnel_dielectric_transmittance(cos_o, eta);
+    return albedo * t * FRAC_1_PI / (eta * eta * (1.0 - albedo * f_int));
+}
+
+// Direction `which` (0: wi, 1: wo) of pair i.
+fn load(i: u32, which: u32) -> vec3<f32> {
+    let k = 6u * i + 3u * which;
+    return vec3<f32>(pairs[k], pairs[k + 1u], pairs[k + 2u]);
+}
+
+@compute @workgroup_size(64)
+fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
+    let i = gid.x;
+    if i >= params.n {
+        return;
+    }
+    let wi = load(i, 0u);
+    let wo = load(i, 1u);
+    let above = wi.z > 0.0 && wo.z > 0.0;
+    let geo = reflection_geometry(params.mf, params.g2, wi, wo);
+    let shape = oren_nayar_shape(params.sigma, wi, wo);
+    for (var c = 0u; c < params.channels; c++) {
+        let p = channel[c];
+        var f = 0.0;
+        if above {
+            switch params.kind {
+                case 0u: { f = geo.x * fresnel_form_conductor(params.fresnel, geo.y, p.x, p.y); }
+                case 1u: { f = p.z * shape; }
+                default: { f = smooth_coat_lambert(p.z, p.x, p.w, wi.z, wo.z); }
+            }
+        }
+        out[i * params.channels + c] = f;
+    }
+}

@@ -1,0 +1,220 @@
+// Optics primitives on the GPU, in float32: each function mirrors the Rust function of the same name in src/optics
+// (fresnel.rs, distribution.rs, diffuse.rs, mod.rs) and src/bsdf.rs, and tests/test_gpu.py holds them together.
+// Conventions: docs/conventions.md (local frame, z = normal, directions pointing away from the surface).
+
+const PI: f32 = 3.14159265358979;
+const FRAC_1_PI: f32 = 0.318309886183791;
+
+// optics::to_tangent_frame: a local direction in a layer's tangent frame rotated by angle (cos, sin).
+fn to_tangent_frame(w: vec3<f32>, cos_phi: f32, sin_phi: f32) -> vec3<f32> {
+    return vec3<f32>(cos_phi * w.x + sin_phi * w.y, -sin_phi * w.x + cos_phi * w.y, w.z);
+}
+
+// fresnel::dielectric: exact unpolarized dielectric Fresnel reflectance (Born & Wolf §1.5); 1 under TIR.
+fn fresnel_dielectric(cos_in: f32, eta_in: f32) -> f32 {
+    var cos_i = cos_in;
+    var eta = eta_in;
+    if cos_i < 0.0 {
+        cos_i = -cos_i;
+        eta = 1.0 / eta;
+    }
+    cos_i = min(cos_i, 1.0);
+    let sin2_t = (1.0 - cos_i * cos_i) / (eta * eta);
+    if sin2_t >= 1.0 {
+        return 1.0;
+    }
+    let cos_t = sqrt(1.0 - sin2_t);
+    let r_s = (cos_i - eta * cos_t) / (cos_i + eta * cos_t);
+    let r_p = (eta * cos_i - cos_t) / (eta * cos_i + cos_t);
+    return 0.5 * (r_s * r_s + r_p * r_p);
+}
+
+// fresnel::dielectric_transmittance: 1 − F without cancellation near grazing incidence; 0 under TIR.
+fn fresnel_dielectric_transmittance(cos_in: f32, eta_in: f32) -> f32 {
+    var cos_i = cos_in;
+    var eta = eta_in;
+    if cos_i < 0.0 {
+        cos_i = -cos_i;
+        eta = 1.0 / eta;
+    }
+    cos_i = min(cos_i, 1.0);
+    let sin2_t = (1.0 - cos_i * cos_i) / (eta * eta);
+    if sin2_t >= 1.0 {
+        return 0.0;
+    }
+    let cos_t = sqrt(1.0 - sin2_t);
+    let s = cos_i + eta * cos_t;
+    let p = eta * cos_i + cos_t;
+    return 2.0 * eta * cos_i * cos_t * (1.0 / (s * s) + 1.0 / (p * p));
+}
+
+// fresnel::conductor: exact unpolarized conductor Fresnel reflectance of eta + ik (Born & Wolf §14.2).
+fn fresnel_conductor(cos_in: f32, eta: f32, k: f32) -> f32 {
+    let cos_i = clamp(cos_in, 0.0, 1.0);
+    let cos2 = cos_i * cos_i;
+    let sin2 = 1.0 - cos2;
+    let t0 = eta * eta - k * k - sin2;
+    let a2b2 = sqrt(t0 * t0 + 4.0 * eta * eta * k * k);
+    let a = sqrt(max(0.5 * (a2b2 + t0), 0.0));
+    let den_s = a2b2 + 2.0 * a * cos_i + cos2;
+    var r_s = 1.0;
+    if den_s > 0.0 {
+        r_s = max((a2b2 - 2.0 * a * cos_i + cos2) / den_s, 0.0);
+    }
+    let num = cos2 * a2b2 - 2.0 * a * cos_i * sin2 + sin2 * sin2;
+    let den = cos2 * a2b2 + 2.0 * a * cos_i * sin2 + sin2 * sin2;
+    var r_p = r_s;
+    if den > 0.0 {
+        r_p = max(r_s * num / den, 0.0);
+    }
+    return 0.5 * (r_s + r_p);
+}
+
+// fresnel::f0: reflectance at normal incidence of eta + ik.
+fn fresnel_f0(eta: f32, k: f32) -> f32 {
+    return ((eta - 1.0) * (eta - 1.0) + k * k) / ((eta + 1.0) * (eta + 1.0) + k * k);
+}
+
+// fresnel::schlick: Schlick 1994, F0 + (1 − F0)(1 − cos θ)^5.
+fn fresnel_schlick(cos_i: f32, f0: f32) -> f32 {
+    let m = 1.0 - clamp(cos_i, 0.0, 1.0);
+    return f0 + (1.0 - f0) * m * m * m * m * m;
+}
+
+// fresnel::lazanyi: Lazányi & Szirmay-Kalos 2005, at most 1.
+fn fresnel_lazanyi(cos_i: f32, eta: f32, k: f32) -> f32 {
+    let c = 1.0 - clamp(cos_i, 0.0, 1.0);
+    let m = c * c * c * c * c;
+    return min(((eta - 1.0) * (eta - 1.0) + 4.0 * eta * m + k * k) / ((eta + 1.0) * (eta + 1.0) + k * k), 1.0);
+}
+
+// FresnelForm::conductor: form 0 exact, 1 Schlick, 2 Lazányi.
+fn fresnel_form_conductor(form: u32, cos_i: f32, eta: f32, k: f32) -> f32 {
+    switch form {
+        case 1u: { return fresnel_schlick(cos_i, fresnel_f0(eta, k)); }
+        case 2u: { return fresnel_lazanyi(cos_i, eta, k); }
+        default: { return fresnel_conductor(cos_i, eta, k); }
+    }
+}
+
+// Microfacet: distribution (0 GGX, 1 Beckmann), roughness along the tangent frame rotated by (cos_phi, sin_phi);
+// smooth = 1 for a Dirac interface (roughness (0, 0)). The roughnesses are already clamped to MIN_ALPHA.
+struct Microfacet {
+    dist: u32,
+    smooth_: u32,
+    alpha_x: f32,
+    alpha_y: f32,
+    cos_phi: f32,
+    sin_phi: f32,
+}
+
+// libm's erf as Abramowitz & Stegun 7.1.26 (|error| < 1.5e-7), for Beckmann's Λ.
+fn erf(x: f32) -> f32 {
+    let t = 1.0 / (1.0 + 0.3275911 * abs(x));
+    let y = 1.0 - (((((1.061405429 * t - 1.453152027) * t) + 1.421413741) * t - 0.284496736) * t + 0.254829592) * t * exp(-x * x);
+    return select(-y, y, x >= 0.0);
+}
+
+// Microfacet::d: Walter et al. 2007 eq. 33 (GGX) and eq. 25 (Beckmann), anisotropic (Heitz 2014 eq. 85/86).
+fn mf_d(mf: Microfacet, m_in: vec3<f32>) -> f32 {
+    let m = to_tangent_frame(m_in, mf.cos_phi, mf.sin_phi);
+    if m.z <= 0.0 {
+        return 0.0;
+    }
+    let x = m.x / mf.alpha_x;
+    let y = m.y / mf.alpha_y;
+    let z2 = m.z * m.z;
+    if mf.dist == 0u {
+        let s = x * x + y * y + z2;
+        return 1.0 / (PI * mf.alpha_x * mf.alpha_y * s * s);
+    }
+    return exp(-(x * x + y * y) / z2) / (PI * mf.alpha_x * mf.alpha_y * z2 * z2);
+}
+
+// Microfacet::lambda: Smith Λ (Heitz 2014 eq. 72 GGX, eq. 69 Beckmann) with the projected roughness.
+fn mf_lambda(mf: Microfacet, w_in: vec3<f32>) -> f32 {
+    let w = to_tangent_frame(w_in, mf.cos_phi, mf.sin_phi);
+    let ax = w.x * mf.alpha_x;
+    let ay = w.y * mf.alpha_y;
+    let alpha_tan2 = (ax * ax + ay * ay) / (w.z * w.z);
+    if mf.dist == 0u {
+        return 0.5 * (sqrt(1.0 + alpha_tan2) - 1.0);
+    }
+    let a = 1.0 / sqrt(alpha_tan2);
+    return 0.5 * (erf(a) - 1.0) + exp(-a * a) / (2.0 * a * sqrt(PI));
+}
+
+// Microfacet::g1: Smith masking (Heitz 2014 eq. 43).
+fn mf_g1(mf: Microfacet, w: vec3<f32>, m: vec3<f32>) -> f32 {
+    if dot(w, m) * w.z <= 0.0 {
+        return 0.0;
+    }
+    return 1.0 / (1.0 + mf_lambda(mf, w));
+}
+
+// Microfacet::g2_separable: G1(wi) G1(wo) (Heitz 2014 eq. 98).
+fn mf_g2_separable(mf: Microfacet, wi: vec3<f32>, wo: vec3<f32>, m: vec3<f32>) -> f32 {
+    return mf_g1(mf, wi, m) * mf_g1(mf, wo, m);
+}
+
+// Microfacet::g2_height_correlated: 1 / (1 + Λ(wi) + Λ(wo)) (Heitz 2014 eq. 99).
+fn mf_g2_height_correlated(mf: Microfacet, wi: vec3<f32>, wo: vec3<f32>, m: vec3<f32>) -> f32 {
+    if dot(wi, m) * wi.z <= 0.0 || dot(wo, m) * wo.z <= 0.0 {
+        return 0.0;
+    }
+    return 1.0 / (1.0 + mf_lambda(mf, wi) + mf_lambda(mf, wo));
+}
+
+// distribution::v_cavity: Torrance–Sparrow 1967 / Cook–Torrance 1982 V-cavity masking-shadowing.
+fn v_cavity(wi: vec3<f32>, wo: vec3<f32>, m: vec3<f32>) -> f32 {
+    let im = dot(wi, m);
+    let om = dot(wo, m);
+    if im * wi.z <= 0.0 || om * wo.z <= 0.0 {
+        return 0.0;
+    }
+    return min(min(abs(2.0 * m.z * wo.z / om), abs(2.0 * m.z * wi.z / im)), 1.0);
+}
+
+// Microfacet::g2: form 0 separable, 1 height-correlated, 2 V-cavity.
+fn mf_g2(mf: Microfacet, form: u32, wi: vec3<f32>, wo: vec3<f32>, m: vec3<f32>) -> f32 {
+    switch form {
+        case 0u: { return mf_g2_separable(mf, wi, wo, m); }
+        case 1u: { return mf_g2_height_correlated(mf, wi, wo, m); }
+        default: { return v_cavity(wi, wo, m); }
+    }
+}
+
+// bsdf::reflection_geometry: D G2 / (4 |cos θi cos θo|) and wi·h (Walter et al. 2007 eq. 20); (0, 0) where there
+// is no rough reflection.
+fn reflection_geometry(mf: Microfacet, form: u32, wi: vec3<f32>, wo: vec3<f32>) -> vec2<f32> {
+    var h = normalize(wi + wo);
+    if h.z < 0.0 {
+        h = -h;
+    }
+    let g = mf_g2(mf, form, wi, wo, h);
+    if wi.z * wo.z <= 0.0 || mf.smooth_ != 0u || g == 0.0 {
+        return vec2<f32>(0.0, 0.0);
+    }
+    return vec2<f32>(mf_d(mf, h) * g / (4.0 * abs(wi.z * wo.z)), dot(wi, h));
+}
+
+// diffuse::oren_nayar_shape: qualitative Oren–Nayar 1994 (eq. 30) per unit albedo.
+fn oren_nayar_shape(sigma: f32, wi: vec3<f32>, wo: vec3<f32>) -> f32 {
+    if wi.z <= 0.0 || wo.z <= 0.0 {
+        return 0.0;
+    }
+    if sigma == 0.0 {
+        return FRAC_1_PI;
+    }
+    let s2 = sigma * sigma;
+    let a = 1.0 - 0.5 * s2 / (s2 + 0.33);
+    let b = 0.45 * s2 / (s2 + 0.09);
+    let sin_i = sqrt(max(1.0 - wi.z * wi.z, 0.0));
+    let sin_o = sqrt(max(1.0 - wo.z * wo.z, 0.0));
+    var cos_dphi = 0.0;
+    if sin_i > 1e-12 && sin_o > 1e-12 {
+        cos_dphi = clamp((wi.x * wo.x + wi.y * wo.y) / (sin_i * sin_o), -1.0, 1.0);
+    }
+    let sin_alpha_tan_beta = sin_i * sin_o / max(max(wi.z, wo.z), 1e-12);
+    return FRAC_1_PI * (a + b * max(cos_dphi, 0.0) * sin_alpha_tan_beta);
+}

@@ -1,0 +1,149 @@
+"""The wgpu path against the CPU: every microfacet configuration, Belcour on the suite with its options, random
+stacks, spectral channels and inputs longer than one dispatch agree to 1e-4 relative on values above 1e-6 of the peak
+(the issue's criterion; the float32 shader against the float64 core measures about 1e-5 at worst). Runs on whatever
+adapter wgpu finds: lavapipe in CI (make test installs it when root). Without an adapter these tests fail, saying how
+to get one, unless LAMINA_SKIP_GPU=1."""
+
+import os
+
+import lamina
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from lamina import gpu, materials
+
+if gpu.adapter() is None:
+    why = gpu._adapter()[1]
+    if os.environ.get("LAMINA_SKIP_GPU") == "1":
+        pytest.skip(f"LAMINA_SKIP_GPU=1: GPU parity tests not run ({why})", allow_module_level=True)
+    raise RuntimeError(f"no GPU adapter for the parity tests: {why}")
+
+RTOL = 1e-4
+
+
+def _directions(n: int, seed: int) -> tuple[np.ndarray, np.ndarray]:
+    """n pairs over the whole sphere (a quarter below the horizon on either side), not unit length."""
+    rng = np.random.default_rng(seed)
+    wi, wo = rng.normal(size=(2, n, 3)) * rng.uniform(0.5, 2.0, (2, n, 1))
+    wi[: n // 2, 2] = np.abs(wi[: n // 2, 2])
+    wo[n // 4 :, 2] = np.abs(wo[n // 4 :, 2])
+    return wi, wo
+
+
+def assert_parity(stack, model="microfacet", n=20_000, seed=0, wavelengths=None, **options):
+    wi, wo = _directions(n, seed)
+    cpu = stack.eval(wi, wo, model, wavelengths=wavelengths, **options)
+    out = stack.eval(wi, wo, model, wavelengths=wavelengths, device="gpu", **options)
+    assert out.dtype == np.float32 and out.shape == cpu.shape
+    big = cpu > 1e-6 * cpu.max()
+    rel = np.abs(out[big] - cpu[big]) / cpu[big]
+    assert rel.max() <= RTOL, f"worst relative difference {rel.max():.2e} at {np.argmax(rel)}"
+    assert np.all(np.abs(out[~big]) <= 2e-6 * cpu.max())  # zeros (below the horizon) stay zero
+    assert cpu.max() > 0
+
+
+@pytest.mark.parametrize("material", ["gold", "brushed-aluminium", "chromium", "clay", "red-plastic"])
+@pytest.mark.parametrize("g2", ["separable", "height_correlated", "v_cavity"])
+def test_microfacet_presets(material, g2):
+    assert_parity(materials.preset(material), g2=g2)
+
+
+@pytest.mark.parametrize("options", [{"distribution": "beckmann"}, {"fresnel": "schlick"}, {"fresnel": "lazanyi"}])
+def test_microfacet_options(options):
+    assert_parity(materials.preset("brushed-aluminium"), **options)
+
+
+def test_spectral_channels():
+    assert_parity(materials.preset("gold"), wavelengths=np.arange(400.0, 701.0, 10.0))
+    assert_parity(materials.preset("coated-copper"), "belcour", wavelengths=np.arange(400.0, 701.0, 20.0))
+
+
+@pytest.mark.parametrize("material", sorted(materials.SUITE) + ["car-paint"])
+def test_belcour_suite(material):
+    stack = materials.car_paint() if material == "car-paint" else materials.suite(material)
+    assert_parity(stack, "belcour")
+
+
+@pytest.mark.parametrize(
+    "options",
+    [
+        {"symmetric": True},
+        {"g2": "separable"},
+        {"g2": "v_cavity"},
+        {"energy": "fresnel"},
+        {"cosines": "real", "jacobian": "j21"},
+        {"tir": "fraction"},
+    ],
+)
+@pytest.mark.parametrize("material", ["anisotropic-coat-metal", "varnished-diffuse", "three-layer"])
+def test_belcour_options(material, options):
+    assert_parity(materials.suite(material), "belcour", **options)
+
+
+@settings(max_examples=15, deadline=None)
+@given(
+    ior=st.floats(1.05, 2.5),
+    # Smooth, or at least 0.01 along each axis: a lobe of roughness α (≥ 1e-4) amplifies the float32 rounding of the
+    # directions (6e-8) by 1/α, so below 0.01 float32 cannot hold 1e-4.
+    coat=st.one_of(st.just((0.0, 0.0)), st.tuples(st.floats(0.01, 0.8), st.floats(0.01, 0.8))),
+    angle=st.floats(-3.0, 3.0),
+    sigma_a=st.floats(0.0, 2.0),
+    base=st.tuples(st.floats(0.02, 0.9), st.floats(0.02, 0.9)),
+    seed=st.integers(0, 1000),
+)
+def test_random_belcour_stacks(ior, coat, angle, sigma_a, base, seed):
+    stack = lamina.Stack(
+        [
+            lamina.Dielectric(ior, coat, angle=angle, thickness=1.0, sigma_a=sigma_a),
+            lamina.Conductor((0.2, 0.9, 1.1), (3.0, 2.6, 2.3), base, angle=-angle),
+        ]
+    )
+    assert_parity(stack, "belcour", n=2000, seed=seed)
+
+
+@settings(max_examples=25, deadline=None)
+@given(
+    eta=st.floats(0.1, 4.0),
+    k=st.floats(0.0, 8.0),
+    ax=st.floats(0.01, 1.0),
+    ay=st.floats(0.01, 1.0),
+    angle=st.floats(-3.0, 3.0),
+    seed=st.integers(0, 1000),
+)
+def test_random_conductors(eta, k, ax, ay, angle, seed):
+    stack = lamina.Stack([lamina.Conductor(eta, k, (ax, ay), angle=angle)])
+    assert_parity(stack, n=2000, seed=seed)
+
+
+def test_inputs_longer_than_one_dispatch():
+    """2^21 + 3 pairs: two dispatches; the rows of the second agree too."""
+    n = (1 << 21) + 3
+    wi = np.broadcast_to(np.array([0.3, -0.2, 0.9], np.float32), (n, 3))
+    wo = np.zeros((n, 3), np.float32)
+    t = np.linspace(0.05, 1.5, n, dtype=np.float32)
+    wo[:, 0], wo[:, 2] = np.sin(t), np.cos(t)
+    stack = materials.preset("gold")
+    out = stack.eval(wi, wo, device="gpu")
+    np.testing.assert_allclose(out[-1000:], stack.eval(wi[-1000:], wo[-1000:]), rtol=RTOL, atol=1e-7)
+    np.testing.assert_allclose(out[:1000], stack.eval(wi[:1000], wo[:1000]), rtol=RTOL, atol=1e-7)
+
+
+def test_device_choice_and_errors():
+    stack = materials.preset("gold")
+    wi, wo = _directions(100, 1)
+    auto = stack.eval(wi, wo, device="auto")
+    if gpu.adapter()["device_type"] == "Cpu":  # lavapipe is no faster than the CPU path: auto keeps the CPU
+        np.testing.assert_array_equal(auto, stack.eval(wi, wo))
+    with pytest.raises(ValueError, match="device must be one of"):
+        stack.eval(wi, wo, device="tpu")
+    with pytest.raises(ValueError, match="no GPU implementation yet"):
+        materials.suite("gold-clearcoat").eval(wi, wo, "steinberg", device="gpu")
+    with pytest.raises(ValueError, match="tabulated=False runs on the CPU only"):
+        materials.suite("gold-clearcoat").eval(wi, wo, "belcour", device="gpu", tabulated=False)
+    with pytest.raises(ValueError, match="wi contains a zero-length direction"):
+        stack.eval(np.zeros(3), wo, device="gpu")
+    with pytest.raises(ValueError, match="wo contains NaN or Inf"):
+        stack.eval(wi, np.full(3, np.nan), device="gpu")
+    with pytest.raises(TypeError, match="has no option"):
+        stack.eval(wi, wo, device="gpu", lut="fitted")
