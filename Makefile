@@ -79,6 +79,7 @@ bench: develop test-deps
 	$(LLVM) $(VPY) benchmarks/bench_sampling.py
 	$(VPY) benchmarks/bench_reference.py
 	$(LLVM) $(VPY) benchmarks/bench_render.py
+	$(LLVM) $(VPY) benchmarks/bench_gpu.py
 	$(VPY) benchmarks/bench_memory.py
 	$(VPY) benchmarks/profile.py
 

@@ -20,6 +20,7 @@ __all__ = [
     "fresnel_schlick",
     "gpu_adapter",
     "gpu_models",
+    "gpu_resident_seconds",
     "interface_bsdf",
     "jacobian",
     "microfacet_d",
@@ -34,6 +35,7 @@ __all__ = [
     "read_obj",
     "reference_tally",
     "render",
+    "render_gpu",
     "sample",
     "sample_visible",
     "sky",
@@ -149,4 +151,23 @@ def gpu_adapter() -> dict[str, str]: ...
 def gpu_models() -> list[str]: ...
 def eval_gpu(
     layers: list[dict], ext_ior: float, model: str, wi: _Array, wo: _Array, options: dict | None = None
+) -> _Array: ...
+def gpu_resident_seconds(
+    layers: list[dict],
+    ext_ior: float,
+    model: str,
+    wi: _Array,
+    wo: _Array,
+    repeats: int,
+    options: dict | None = None,
+) -> float: ...
+def render_gpu(
+    stacks: list[tuple[list[dict], float]],
+    model: str,
+    options: dict | None,
+    shape: str,
+    camera: tuple[tuple[float, float, float], tuple[float, float, float], float] | None,
+    lights: list[tuple[str, tuple[float, float, float], tuple[float, float, float]]],
+    width: int,
+    height: int,
 ) -> _Array: ...

@@ -8,6 +8,8 @@ import sys
 import tempfile
 from functools import lru_cache
 
+import numpy as np
+
 from . import _lamina
 
 DEVICES = ("cpu", "gpu", "auto")
@@ -50,3 +52,15 @@ def use_gpu(device: str, model: str) -> bool:
             raise RuntimeError(f"device='gpu': {why}")
         return True
     return info is not None and info["device_type"] != "Cpu" and model in models()
+
+
+def resident_throughput(stack, wi, wo, model: str = "microfacet", repeats: int = 5, **options) -> float:
+    """Evaluations per second on the GPU with the pairs (wi, wo broadcast to n) and the results resident on the device:
+    uploaded once, dispatched `repeats` times, nothing read back. For benchmarks; `Stack.eval(device="gpu")` is the
+    same evaluation with transfers."""
+    from ._arrays import broadcast
+
+    wi, wo = broadcast(wi=(wi, 3), wo=(wo, 3))
+    n = int(np.prod(wi.shape[:-1]))
+    seconds = _lamina.gpu_resident_seconds(stack._resolve(None), stack.ext_ior, model, wi, wo, repeats, options)
+    return n / seconds

@@ -10,6 +10,7 @@ from pathlib import Path
 import numpy as np
 
 from . import _lamina, materials
+from . import gpu as _gpu
 from .renderer import relative_error, render, save_image, sky, to_srgb8
 from .stack import Stack
 
@@ -172,7 +173,12 @@ def write_gallery(out="out", *, size: int = 128, spp: int = 32, reference_spp: i
     out = Path(out)
     (out / "exr").mkdir(parents=True, exist_ok=True)
     start = time.perf_counter()
-    log(f"lamina gallery on the CPU ({_threads()} threads; this build has no GPU renderer)")
+    adapter = _gpu.adapter()
+    found = f"{adapter['name']} ({adapter['device_type']})" if adapter else "none"
+    log(
+        f"lamina gallery: rendering on the CPU ({_threads()} threads). GPU adapter: {found}; the GPU renders "
+        "directional and point lights only, and the gallery is lit by the sky, so it runs on the CPU."
+    )
     fig, result = gallery(size=size, spp=spp, reference_spp=reference_spp, log=log)
     for k, name in enumerate(result["names"]):
         save_image(out / "exr" / f"{name}_reference.exr", result["reference"][k])

@@ -15,6 +15,7 @@ from pathlib import Path
 import numpy as np
 
 from . import _lamina
+from . import gpu as _gpu
 from .catalogue import model as _model
 from .materials import Patina
 from .stack import Stack
@@ -239,14 +240,11 @@ def render(
     for `seed`; every stack sees the same samples. The reference estimates f per light and the environment by random
     walks, `spp` per pixel and channel. Keyword arguments are the model's options, and its per-element inputs as
     textures over the surface's uv ((h, w) or (h, w, 3) arrays, or constants), e.g. flake_normal for car paint.
-    device: "cpu" or "auto" (the CPU); "gpu" raises: this build has no GPU path."""
-    if device not in ("cpu", "gpu", "auto"):
-        raise ValueError(f"device must be 'cpu', 'gpu' or 'auto', got {device!r}")
-    if device == "gpu":
-        raise RuntimeError(
-            "device='gpu': this build of lamina has no GPU renderer yet (the wgpu path is not implemented); "
-            "use device='cpu' or 'auto'"
-        )
+    device: "cpu"; "gpu" renders directional and point lights on the sphere or plane with the models that run on the
+    GPU (lamina.gpu.models(), wgpu, float32, one dispatch per stack in one submission; other scenes raise
+    ValueError); "auto" takes a hardware GPU for such scenes, else the CPU."""
+    if device not in _gpu.DEVICES:
+        raise ValueError(f"device must be one of {_gpu.DEVICES}, got {device!r}")
     items, brought, single = _stacks(stacks)
     m = _model(model)
     for name, v in (("width", width), ("height", height), ("spp", spp), ("seed", seed)):
@@ -295,6 +293,17 @@ def render(
             f"per-element inputs {list(m.inputs)}"
         )
     layers = [(s._resolve(None), s.ext_ior) for s in items]
+    # The GPU renders the deterministic scenes: directional and point lights on the sphere or the plane.
+    deterministic = env is None and not textures and isinstance(shape, str) and m.name in _gpu.models()
+    if device == "gpu" and not deterministic:
+        raise ValueError(
+            f"device='gpu' renders directional and point lights on the sphere or the plane with the models "
+            f"{_gpu.models()}; environment lights, meshes, per-element textures and the reference run on the CPU: "
+            "use device='cpu' or 'auto'"
+        )
+    if deterministic and _gpu.use_gpu(device, m.name):
+        out = _lamina.render_gpu(layers, m.name, options, shape, camera, specs, width, height)
+        return out[0] if single else out
     out = np.empty((len(items), height, width, 3), dtype=np.float32)
     band = max(1, 4096 // width)
     bar = _progress(len(items) * width * height * (1 + spp * (env is not None)), progress)

@@ -17,6 +17,8 @@ use wgpu::util::DeviceExt;
 
 /// The shared primitives.
 pub const OPTICS: &str = include_str!("shaders/optics.wgsl");
+/// The renderer's deterministic kernel, composed after a model.
+pub const RENDER: &str = include_str!("shaders/render.wgsl");
 /// The models' shaders, by model name: each is composed after OPTICS.
 pub const MODELS: &[(&str, &str)] =
     &[("microfacet", include_str!("shaders/microfacet.wgsl")), ("belcour", include_str!("shaders/belcour.wgsl"))];
@@ -34,12 +36,13 @@ pub fn supports(model: &str) -> bool {
 /// Pairs per dispatch: 2^21 (32768 workgroups of 64, within every adapter's dispatch limit).
 const CHUNK: usize = 1 << 21;
 
-/// The adapter, its device and one compute pipeline per model (in the order of MODELS).
+/// The adapter, its device, and per model (in the order of MODELS) its eval and render pipelines.
 pub struct Gpu {
     pub info: wgpu::AdapterInfo,
     device: wgpu::Device,
     queue: wgpu::Queue,
     pipelines: Vec<wgpu::ComputePipeline>,
+    renderers: Vec<wgpu::ComputePipeline>,
 }
 
 /// How to get an adapter, for the error when there is none.
@@ -77,24 +80,26 @@ async fn create() -> std::result::Result<Gpu, String> {
         })
         .await
         .map_err(|e| format!("the GPU adapter refused a device: {e}"))?;
-    let pipelines = MODELS
-        .iter()
-        .map(|(name, _)| {
-            let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
-                label: Some(name),
-                source: wgpu::ShaderSource::Wgsl(compose(name).expect("listed").into()),
-            });
-            device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
-                label: Some(name),
-                layout: None,
-                module: &module,
-                entry_point: Some("main"),
-                compilation_options: Default::default(),
-                cache: None,
-            })
+    let pipeline = |name: &str, source: String, entry: &str| {
+        let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
+            label: Some(name),
+            source: wgpu::ShaderSource::Wgsl(source.into()),
+        });
+        device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+            label: Some(name),
+            layout: None,
+            module: &module,
+            entry_point: Some(entry),
+            compilation_options: Default::default(),
+            cache: None,
         })
+    };
+    let pipelines = MODELS.iter().map(|(name, _)| pipeline(name, compose(name).expect("listed"), "main")).collect();
+    let renderers = MODELS
+        .iter()
+        .map(|(name, _)| pipeline(name, format!("{}\n{RENDER}", compose(name).expect("listed")), "render"))
         .collect();
-    Ok(Gpu { info: adapter.get_info(), device, queue, pipelines })
+    Ok(Gpu { info: adapter.get_info(), device, queue, pipelines, renderers })
 }
 
 /// A model prepared for the GPU: its shader's parameters (uniform words; the pair count is set per dispatch at
@@ -212,11 +217,14 @@ pub fn kernel(model: &str, stack: &Stack, opts: &Options) -> Result<Kernel> {
     match model {
         "microfacet" => Ok(microfacet_kernel(&microfacet::prepare(stack, opts)?)),
         "belcour" => belcour_kernel(&belcour::prepare(stack, opts)?),
-        _ => value_error(format!(
-            "model {model:?} has no GPU implementation yet (GPU models: {:?}); use device='cpu'",
-            MODELS.iter().map(|m| m.0).collect::<Vec<_>>()
-        )),
+        _ => Err(unsupported(model)),
     }
+}
+
+/// The error for a model without a GPU implementation, naming those that have one.
+fn unsupported(model: &str) -> Error {
+    let names: Vec<&str> = MODELS.iter().map(|m| m.0).collect();
+    Error::Value(format!("model {model:?} has no GPU implementation yet (GPU models: {names:?}); use device='cpu'"))
 }
 
 /// A kernel with its arrays uploaded to the device.
@@ -258,62 +266,209 @@ fn upload(gpu: &Gpu, model: &str, stack: &Stack, opts: &Options) -> Result<Arc<U
     Ok(up)
 }
 
-/// f of `model` for n pairs given as float32 rows (wi.xyz, wo.xyz), unit directions: n·channels float32 values.
-pub fn eval(model: &str, stack: &Stack, opts: &Options, pairs: &[f32]) -> Result<Vec<f32>> {
+/// One dispatch: its parameters and pairs on the device, its output buffer and their bind group.
+struct Batch {
+    bind: wgpu::BindGroup,
+    out: wgpu::Buffer,
+    pairs: usize,
+}
+
+/// Uploads the pairs (float32 rows wi.xyz, wo.xyz) of one dispatch of `up`'s kernel.
+fn batch(gpu: &Gpu, up: &Uploaded, pipeline: &wgpu::ComputePipeline, pairs: &[f32]) -> Batch {
+    let (device, kernel) = (&gpu.device, &up.kernel);
+    let m = pairs.len() / 6;
+    let mut words = kernel.words.clone();
+    words[kernel.count_word] = m as u32;
+    let init = |label, contents: &[u8], usage| {
+        device.create_buffer_init(&wgpu::util::BufferInitDescriptor { label: Some(label), contents, usage })
+    };
+    let params = init("params", bytemuck::cast_slice(&words), wgpu::BufferUsages::UNIFORM);
+    let pair_buf = init("pairs", bytemuck::cast_slice(pairs), wgpu::BufferUsages::STORAGE);
+    let out = device.create_buffer(&wgpu::BufferDescriptor {
+        label: Some("f"),
+        size: (4 * m * kernel.channels) as u64,
+        usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
+        mapped_at_creation: false,
+    });
+    let buffers: Vec<&wgpu::Buffer> = std::iter::once(&params).chain(&up.arrays).chain([&pair_buf, &out]).collect();
+    let entries: Vec<wgpu::BindGroupEntry> = buffers
+        .iter()
+        .enumerate()
+        .map(|(k, b)| wgpu::BindGroupEntry { binding: k as u32, resource: b.as_entire_binding() })
+        .collect();
+    let layout = pipeline.get_bind_group_layout(0);
+    let bind = device.create_bind_group(&wgpu::BindGroupDescriptor { label: None, layout: &layout, entries: &entries });
+    Batch { bind, out, pairs: m }
+}
+
+/// Submits one dispatch of a batch, then (with `read`) the copy of its output into `read`.
+fn dispatch(gpu: &Gpu, pipeline: &wgpu::ComputePipeline, b: &Batch, read: Option<&wgpu::Buffer>) {
+    let mut encoder = gpu.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: None });
+    {
+        let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor { label: None, timestamp_writes: None });
+        pass.set_pipeline(pipeline);
+        pass.set_bind_group(0, &b.bind, &[]);
+        pass.dispatch_workgroups(b.pairs.div_ceil(64) as u32, 1, 1);
+    }
+    if let Some(read) = read {
+        encoder.copy_buffer_to_buffer(&b.out, 0, read, 0, b.out.size());
+    }
+    gpu.queue.submit([encoder.finish()]);
+}
+
+fn wait(gpu: &Gpu) -> Result<()> {
+    gpu.device.poll(wgpu::PollType::wait_indefinitely()).map(|_| ()).map_err(|e| Error::Value(format!("GPU: {e}")))
+}
+
+/// The model on the device, its pipeline, and the pairs per dispatch (CHUNK, or fewer where the adapter's
+/// storage-buffer limit requires).
+fn prepared(
+    model: &str,
+    stack: &Stack,
+    opts: &Options,
+    pairs: &[f32],
+) -> Result<(&'static Gpu, Arc<Uploaded>, &'static wgpu::ComputePipeline, usize)> {
     if !pairs.len().is_multiple_of(6) {
         return value_error("pairs must be float32 (n, 6) rows of wi and wo");
     }
     let gpu = gpu()?;
-    let arrays = upload(gpu, model, stack, opts)?;
-    let kernel = &arrays.kernel;
-    let pipeline = &gpu.pipelines[MODELS.iter().position(|m| m.0 == kernel.model).expect("a listed model")];
-    let (c, n) = (kernel.channels, pairs.len() / 6);
-    let mut out = vec![0f32; n * c];
+    let up = upload(gpu, model, stack, opts)?;
+    let pipeline = &gpu.pipelines[MODELS.iter().position(|m| m.0 == up.kernel.model).expect("a listed model")];
+    let limit = gpu.device.limits().max_storage_buffer_binding_size as usize;
+    let chunk = CHUNK.min((limit / (4 * up.kernel.channels.max(6))).max(64));
+    Ok((gpu, up, pipeline, chunk))
+}
+
+/// f of `model` for n pairs given as float32 rows (wi.xyz, wo.xyz), unit directions: n·channels float32 values.
+pub fn eval(model: &str, stack: &Stack, opts: &Options, pairs: &[f32]) -> Result<Vec<f32>> {
+    let (gpu, up, pipeline, chunk) = prepared(model, stack, opts, pairs)?;
+    let c = up.kernel.channels;
+    let mut out = vec![0f32; pairs.len() / 6 * c];
+    for (rows, dst) in pairs.chunks(6 * chunk).zip(out.chunks_mut(chunk * c)) {
+        let b = batch(gpu, &up, pipeline, rows);
+        let read = gpu.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("readback"),
+            size: b.out.size(),
+            usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        dispatch(gpu, pipeline, &b, Some(&read));
+        let slice = read.slice(..);
+        slice.map_async(wgpu::MapMode::Read, |_| {});
+        wait(gpu)?;
+        let view = slice.get_mapped_range().map_err(|e| Error::Value(format!("GPU: {e}")))?;
+        dst.copy_from_slice(bytemuck::cast_slice(&view));
+    }
+    Ok(out)
+}
+
+/// Seconds per evaluation of all the pairs with inputs and outputs resident on the device (uploaded once, nothing
+/// read back): the mean over `repeats` rounds after a warm-up round. For benchmarks.
+pub fn resident_seconds(model: &str, stack: &Stack, opts: &Options, pairs: &[f32], repeats: usize) -> Result<f64> {
+    let (gpu, up, pipeline, chunk) = prepared(model, stack, opts, pairs)?;
+    let batches: Vec<Batch> = pairs.chunks(6 * chunk).map(|rows| batch(gpu, &up, pipeline, rows)).collect();
+    batches.iter().for_each(|b| dispatch(gpu, pipeline, b, None));
+    wait(gpu)?;
+    let start = std::time::Instant::now();
+    for _ in 0..repeats.max(1) {
+        batches.iter().for_each(|b| dispatch(gpu, pipeline, b, None));
+        wait(gpu)?;
+    }
+    Ok(start.elapsed().as_secs_f64() / repeats.max(1) as f64)
+}
+
+/// A scene for the GPU renderer: the image size, the shape (0 sphere, 1 plane), the perspective camera's pinhole and
+/// its forward, right and up vectors (scaled as in render.wgsl; None: orthographic), and per light two rows (kind,
+/// xyz), (rgb, 0).
+pub struct Scene {
+    pub width: usize,
+    pub height: usize,
+    pub shape: u32,
+    pub camera: Option<[[f32; 3]; 4]>,
+    pub lights: Vec<[f32; 8]>,
+}
+
+/// Renders each stack under the scene's directional and point lights: (stacks, height, width, 3) float32 radiance.
+/// One dispatch per stack (each with its own tables), all in one submission.
+pub fn render(model: &str, stacks: &[Stack], opts: &Options, scene: &Scene) -> Result<Vec<f32>> {
+    let gpu = gpu()?;
     let device = &gpu.device;
-    let chunk = CHUNK.min((device.limits().max_storage_buffer_binding_size as usize / (4 * c.max(6))).max(64));
-    let mut words = kernel.words.clone();
-    for (start, dst) in (0..n).step_by(chunk).zip(out.chunks_mut(chunk * c)) {
-        let m = chunk.min(n - start);
-        words[kernel.count_word] = m as u32;
-        let init = |label, contents: &[u8], usage| {
-            device.create_buffer_init(&wgpu::util::BufferInitDescriptor { label: Some(label), contents, usage })
-        };
-        let params = init("params", bytemuck::cast_slice(&words), wgpu::BufferUsages::UNIFORM);
-        let pair_buf =
-            init("pairs", bytemuck::cast_slice(&pairs[6 * start..6 * (start + m)]), wgpu::BufferUsages::STORAGE);
-        let size = (4 * m * c) as u64;
-        let buffer = |label, usage| {
+    let Some(k) = MODELS.iter().position(|m| m.0 == model) else { return Err(unsupported(model)) };
+    let pipeline = &gpu.renderers[k];
+    let pixels = scene.width * scene.height;
+    let mut words = [0u32; 24];
+    words[..5].copy_from_slice(&[
+        scene.width as u32,
+        scene.height as u32,
+        scene.shape,
+        scene.camera.is_some() as u32,
+        scene.lights.len() as u32,
+    ]);
+    for (r, v) in scene.camera.unwrap_or_default().iter().enumerate() {
+        for (c, x) in v.iter().enumerate() {
+            words[8 + 4 * r + c] = x.to_bits();
+        }
+    }
+    let init = |label, contents: &[u8], usage| {
+        device.create_buffer_init(&wgpu::util::BufferInitDescriptor { label: Some(label), contents, usage })
+    };
+    let render_params = init("render params", bytemuck::cast_slice(&words), wgpu::BufferUsages::UNIFORM);
+    let rows: Vec<f32> = if scene.lights.is_empty() { vec![0.0; 8] } else { scene.lights.concat() };
+    let lights = init("lights", bytemuck::cast_slice(&rows), wgpu::BufferUsages::STORAGE);
+    let size = (4 * 3 * pixels) as u64;
+    let read = device.create_buffer(&wgpu::BufferDescriptor {
+        label: Some("readback"),
+        size: size * stacks.len() as u64,
+        usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+        mapped_at_creation: false,
+    });
+    let mut encoder = device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: None });
+    let mut keep = Vec::new();
+    for (s, stack) in stacks.iter().enumerate() {
+        let up = upload(gpu, model, stack, opts)?;
+        if up.kernel.channels != 3 {
+            return value_error("render takes RGB stacks (3 channels)");
+        }
+        let params = init("params", bytemuck::cast_slice(&up.kernel.words), wgpu::BufferUsages::UNIFORM);
+        let buffer = |label, size: u64, usage| {
             device.create_buffer(&wgpu::BufferDescriptor { label: Some(label), size, usage, mapped_at_creation: false })
         };
-        let out_buf = buffer("f", wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC);
-        let read = buffer("readback", wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST);
-        let layout = pipeline.get_bind_group_layout(0);
-        let buffers: Vec<&wgpu::Buffer> =
-            std::iter::once(&params).chain(&arrays.arrays).chain([&pair_buf, &out_buf]).collect();
-        let entries: Vec<wgpu::BindGroupEntry> = buffers
+        let scratch = buffer("f", size, wgpu::BufferUsages::STORAGE);
+        let image = buffer("image", size, wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC);
+        // Group 0 as the render entry point uses it: the parameters, the model's arrays and `out` (not `pairs`).
+        let n = up.arrays.len();
+        let model_entries: Vec<wgpu::BindGroupEntry> = std::iter::once((0, &params))
+            .chain(up.arrays.iter().enumerate().map(|(j, b)| (j as u32 + 1, b)))
+            .chain([(n as u32 + 2, &scratch)])
+            .map(|(binding, b)| wgpu::BindGroupEntry { binding, resource: b.as_entire_binding() })
+            .collect();
+        let scene_entries: Vec<wgpu::BindGroupEntry> = [&render_params, &lights, &image]
             .iter()
             .enumerate()
-            .map(|(k, b)| wgpu::BindGroupEntry { binding: k as u32, resource: b.as_entire_binding() })
+            .map(|(binding, b)| wgpu::BindGroupEntry { binding: binding as u32, resource: b.as_entire_binding() })
             .collect();
-        let bind =
-            device.create_bind_group(&wgpu::BindGroupDescriptor { label: None, layout: &layout, entries: &entries });
-        let mut encoder = device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: None });
+        let group = |g: u32, entries: &[wgpu::BindGroupEntry]| {
+            let layout = pipeline.get_bind_group_layout(g);
+            device.create_bind_group(&wgpu::BindGroupDescriptor { label: None, layout: &layout, entries })
+        };
+        let (g0, g1) = (group(0, &model_entries), group(1, &scene_entries));
         {
             let mut pass =
                 encoder.begin_compute_pass(&wgpu::ComputePassDescriptor { label: None, timestamp_writes: None });
             pass.set_pipeline(pipeline);
-            pass.set_bind_group(0, &bind, &[]);
-            pass.dispatch_workgroups(m.div_ceil(64) as u32, 1, 1);
+            pass.set_bind_group(0, &g0, &[]);
+            pass.set_bind_group(1, &g1, &[]);
+            pass.dispatch_workgroups(pixels.div_ceil(64) as u32, 1, 1);
         }
-        encoder.copy_buffer_to_buffer(&out_buf, 0, &read, 0, size);
-        gpu.queue.submit([encoder.finish()]);
-        let slice = read.slice(..);
-        slice.map_async(wgpu::MapMode::Read, |_| {});
-        device.poll(wgpu::PollType::wait_indefinitely()).map_err(|e| Error::Value(format!("GPU: {e}")))?;
-        let view = slice.get_mapped_range().map_err(|e| Error::Value(format!("GPU: {e}")))?;
-        dst[..m * c].copy_from_slice(bytemuck::cast_slice(&view));
+        encoder.copy_buffer_to_buffer(&image, 0, &read, s as u64 * size, size);
+        keep.push((up, params, scratch, image));
     }
-    Ok(out)
+    gpu.queue.submit([encoder.finish()]);
+    let slice = read.slice(..);
+    slice.map_async(wgpu::MapMode::Read, |_| {});
+    wait(gpu)?;
+    let view = slice.get_mapped_range().map_err(|e| Error::Value(format!("GPU: {e}")))?;
+    Ok(bytemuck::cast_slice(&view).to_vec())
 }
 
 #[cfg(test)]
@@ -323,8 +478,11 @@ mod tests {
     #[test]
     fn every_shader_is_valid_wgsl() {
         // naga parses and validates each composed module as wgpu would, without a GPU.
-        for (name, _) in MODELS {
-            let src = compose(name).unwrap();
+        let sources = MODELS.iter().flat_map(|(name, _)| {
+            let model = compose(name).unwrap();
+            [(*name, model.clone()), (*name, format!("{model}\n{RENDER}"))]
+        });
+        for (name, src) in sources {
             let module = wgpu::naga::front::wgsl::parse_str(&src)
                 .unwrap_or_else(|e| panic!("{name}: {}", e.emit_to_string(&src)));
             wgpu::naga::valid::Validator::new(

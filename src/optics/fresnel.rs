@@ -1,18 +1,22 @@
 //! Fresnel reflectance: exact dielectric and conductor, Schlick, Lazányi–Szirmay-Kalos, and the
 //! hemispherical (diffuse) Fresnel reflectance.
 
+/// The cosines of a refraction by Snell's law: (|cos_i| clamped to 1, the relative IOR seen from the incident side,
+/// cos_t), the IOR inverted for incidence from inside (cos_i < 0); None under total internal reflection.
+#[inline(always)]
+fn refraction_cosines(cos_i: f64, eta: f64) -> Option<(f64, f64, f64)> {
+    let (cos_i, eta) = if cos_i < 0.0 { (-cos_i, 1.0 / eta) } else { (cos_i, eta) };
+    let cos_i = cos_i.min(1.0);
+    let sin2_t = (1.0 - cos_i * cos_i) / (eta * eta);
+    (sin2_t < 1.0).then(|| (cos_i, eta, (1.0 - sin2_t).sqrt()))
+}
+
 /// Exact unpolarized dielectric Fresnel reflectance (Born & Wolf §1.5). `cos_i` is the cosine of the incident
 /// direction with the normal on the side of the incidence; a negative `cos_i` means incidence from inside, where
 /// the relative IOR becomes 1/`eta`. `eta` = η_inside / η_outside. Returns 1 under total internal reflection.
 #[inline(always)]
 pub fn dielectric(cos_i: f64, eta: f64) -> f64 {
-    let (cos_i, eta) = if cos_i < 0.0 { (-cos_i, 1.0 / eta) } else { (cos_i, eta) };
-    let cos_i = cos_i.min(1.0);
-    let sin2_t = (1.0 - cos_i * cos_i) / (eta * eta);
-    if sin2_t >= 1.0 {
-        return 1.0;
-    }
-    let cos_t = (1.0 - sin2_t).sqrt();
+    let Some((cos_i, eta, cos_t)) = refraction_cosines(cos_i, eta) else { return 1.0 };
     let r_s = (cos_i - eta * cos_t) / (cos_i + eta * cos_t);
     let r_p = (eta * cos_i - cos_t) / (eta * cos_i + cos_t);
     0.5 * (r_s * r_s + r_p * r_p)
@@ -23,13 +27,7 @@ pub fn dielectric(cos_i: f64, eta: f64) -> f64 {
 /// T_p = 4η cos_i cos_t / (η cos_i + cos_t)². 0 under total internal reflection.
 #[inline(always)]
 pub fn dielectric_transmittance(cos_i: f64, eta: f64) -> f64 {
-    let (cos_i, eta) = if cos_i < 0.0 { (-cos_i, 1.0 / eta) } else { (cos_i, eta) };
-    let cos_i = cos_i.min(1.0);
-    let sin2_t = (1.0 - cos_i * cos_i) / (eta * eta);
-    if sin2_t >= 1.0 {
-        return 0.0;
-    }
-    let cos_t = (1.0 - sin2_t).sqrt();
+    let Some((cos_i, eta, cos_t)) = refraction_cosines(cos_i, eta) else { return 0.0 };
     let (s, p) = (cos_i + eta * cos_t, eta * cos_i + cos_t);
     2.0 * eta * cos_i * cos_t * (1.0 / (s * s) + 1.0 / (p * p))
 }

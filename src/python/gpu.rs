@@ -4,8 +4,9 @@
 use super::api::{parse_options, parse_stack};
 use super::arrays::{batch, Kind};
 use crate::gpu;
+use crate::render::Light;
 use numpy::{PyArrayDyn, PyArrayMethods, PyUntypedArrayMethods};
-use pyo3::exceptions::PyRuntimeError;
+use pyo3::exceptions::{PyRuntimeError, PyValueError};
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyList};
 
@@ -28,6 +29,41 @@ pub fn gpu_models() -> Vec<&'static str> {
     gpu::MODELS.iter().map(|(name, _)| *name).collect()
 }
 
+/// The checked, normalised pairs of (already broadcast) directions as float32 rows (wi.xyz, wo.xyz), and the batch
+/// shape.
+fn pairs<'py>(py: Python<'py>, wi: &Bound<'py, PyAny>, wo: &Bound<'py, PyAny>) -> PyResult<(Vec<f32>, Vec<usize>)> {
+    let dirs = [("wi", wi, Kind::Direction), ("wo", wo, Kind::Direction)];
+    let pairs = batch(py, &dirs, 6, |r, o| {
+        o[..3].copy_from_slice(&r[0]);
+        o[3..].copy_from_slice(&r[1]);
+    })?;
+    let pairs = pairs.call_method1("astype", ("float32",))?;
+    let pairs = pairs.cast::<PyArrayDyn<f32>>()?;
+    let shape = pairs.shape()[..pairs.ndim() - 1].to_vec();
+    let flat = pairs.readonly().as_slice()?.to_vec();
+    Ok((flat, shape))
+}
+
+/// Seconds per evaluation of the pairs with everything resident on the device (gpu::resident_seconds).
+#[pyfunction]
+#[pyo3(signature = (layers, ext_ior, model, wi, wo, repeats, options=None))]
+#[allow(clippy::too_many_arguments)]
+pub fn gpu_resident_seconds<'py>(
+    py: Python<'py>,
+    layers: &Bound<'py, PyList>,
+    ext_ior: f64,
+    model: &str,
+    wi: &Bound<'py, PyAny>,
+    wo: &Bound<'py, PyAny>,
+    repeats: usize,
+    options: Option<&Bound<'py, PyDict>>,
+) -> PyResult<f64> {
+    let stack = parse_stack(layers, ext_ior)?;
+    let (opts, _) = parse_options(model, options)?;
+    let (flat, _) = pairs(py, wi, wo)?;
+    Ok(py.detach(|| gpu::resident_seconds(model, &stack, &opts, &flat, repeats))?)
+}
+
 /// f(wi, wo) on the GPU: (..., channels) float32, for (already broadcast) directions (..., 3).
 #[pyfunction]
 #[pyo3(signature = (layers, ext_ior, model, wi, wo, options=None))]
@@ -45,17 +81,63 @@ pub fn eval_gpu<'py>(
     if !gpu::supports(model) {
         gpu::kernel(model, &stack, &opts)?; // the error naming the GPU models
     }
-    let dirs = [("wi", wi, Kind::Direction), ("wo", wo, Kind::Direction)];
-    let pairs = batch(py, &dirs, 6, |r, o| {
-        o[..3].copy_from_slice(&r[0]);
-        o[3..].copy_from_slice(&r[1]);
-    })?;
-    let pairs = pairs.call_method1("astype", ("float32",))?;
-    let pairs = pairs.cast::<PyArrayDyn<f32>>()?;
-    let mut shape = pairs.shape().to_vec();
-    let readonly = pairs.readonly();
-    let flat = readonly.as_slice()?;
-    let f = py.detach(|| gpu::eval(model, &stack, &opts, flat))?;
-    *shape.last_mut().expect("(..., 6)") = stack.channels;
+    let (flat, mut shape) = pairs(py, wi, wo)?;
+    let f = py.detach(|| gpu::eval(model, &stack, &opts, &flat))?;
+    shape.push(stack.channels);
     numpy::PyArray1::from_vec(py, f).reshape(shape).map(|a| a.into_any())
+}
+
+/// Renders stacks under directional and point lights on the GPU: (stacks, height, width, 3) float32. `stacks` is a
+/// list of (layers, ext_ior); `shape` "sphere" or "plane"; `camera` None (orthographic) or (origin, target, fov in
+/// radians); `lights` (kind, vector, rgb) as for render.
+#[pyfunction]
+#[pyo3(signature = (stacks, model, options, shape, camera, lights, width, height))]
+#[allow(clippy::too_many_arguments)]
+pub fn render_gpu<'py>(
+    py: Python<'py>,
+    stacks: &Bound<'py, PyList>,
+    model: &str,
+    options: Option<&Bound<'py, PyDict>>,
+    shape: &str,
+    camera: Option<([f64; 3], [f64; 3], f64)>,
+    lights: Vec<(String, [f64; 3], [f64; 3])>,
+    width: usize,
+    height: usize,
+) -> PyResult<Bound<'py, PyAny>> {
+    let (opts, _) = parse_options(model, options)?;
+    let mut parsed = Vec::new();
+    for item in stacks.iter() {
+        let (layers, ext_ior): (Bound<'py, PyList>, f64) = item.extract()?;
+        parsed.push(parse_stack(&layers, ext_ior)?);
+    }
+    let shape = match shape {
+        "sphere" => 0,
+        "plane" => 1,
+        _ => {
+            return Err(PyValueError::new_err(format!("device='gpu' renders shape 'sphere' or 'plane', got {shape:?}")))
+        }
+    };
+    let camera = camera.map(|(o, t, fov)| {
+        // Scene::ray's pinhole: forward, right and up, the latter two scaled by tan(fov/2) (and the aspect).
+        let (o, t) = (glam::DVec3::from_array(o), glam::DVec3::from_array(t));
+        let forward = (t - o).normalize();
+        let right = forward.cross(glam::DVec3::Y).normalize();
+        let up = right.cross(forward);
+        let h = (0.5 * fov).tan();
+        let aspect = width as f64 / height as f64;
+        [o, forward, right * h * aspect, up * h].map(|v| v.as_vec3().to_array())
+    });
+    let mut rows = Vec::new();
+    for (kind, v, rgb) in &lights {
+        rows.push(
+            match super::render::light(kind, *v, *rgb)? {
+                Light::Directional { direction: d, irradiance: e } => [0.0, d.x, d.y, d.z, e[0], e[1], e[2], 0.0],
+                Light::Point { position: p, intensity: i } => [1.0, p.x, p.y, p.z, i[0], i[1], i[2], 0.0],
+            }
+            .map(|x| x as f32),
+        );
+    }
+    let scene = gpu::Scene { width, height, shape, camera, lights: rows };
+    let image = py.detach(|| gpu::render(model, &parsed, &opts, &scene))?;
+    numpy::PyArray1::from_vec(py, image).reshape([parsed.len(), height, width, 3]).map(|a| a.into_any())
 }

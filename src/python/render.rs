@@ -52,7 +52,7 @@ fn shape(obj: &Bound<'_, PyAny>) -> PyResult<Shape> {
 
 /// One light from (kind, a 3-vector, RGB): ("directional", towards the light, irradiance) or ("point", position,
 /// intensity).
-fn light(kind: &str, v: [f64; 3], rgb: [f64; 3]) -> PyResult<Light> {
+pub fn light(kind: &str, v: [f64; 3], rgb: [f64; 3]) -> PyResult<Light> {
     match kind {
         "directional" => Ok(Light::Directional { direction: DVec3::from_array(v).normalize(), irradiance: rgb }),
         "point" => Ok(Light::Point { position: DVec3::from_array(v), intensity: rgb }),

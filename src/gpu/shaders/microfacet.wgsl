@@ -32,14 +32,8 @@ fn load(i: u32, which: u32) -> vec3<f32> {
     return vec3<f32>(pairs[k], pairs[k + 1u], pairs[k + 2u]);
 }
 
-@compute @workgroup_size(64)
-fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
-    let i = gid.x;
-    if i >= params.n {
-        return;
-    }
-    let wi = load(i, 0u);
-    let wo = load(i, 1u);
+// f(wi, wo) of every channel into out[base..]: the model's one evaluation, shared by the eval and render kernels.
+fn eval_pair(wi: vec3<f32>, wo: vec3<f32>, base: u32) {
     let above = wi.z > 0.0 && wo.z > 0.0;
     let geo = reflection_geometry(params.mf, params.g2, wi, wo);
     let shape = oren_nayar_shape(params.sigma, wi, wo);
@@ -53,6 +47,14 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
                 default: { f = smooth_coat_lambert(p.z, p.x, p.w, wi.z, wo.z); }
             }
         }
-        out[i * params.channels + c] = f;
+        out[base + c] = f;
+    }
+}
+
+@compute @workgroup_size(64)
+fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
+    let i = gid.x;
+    if i < params.n {
+        eval_pair(load(i, 0u), load(i, 1u), i * params.channels);
     }
 }

@@ -10,8 +10,9 @@ fn to_tangent_frame(w: vec3<f32>, cos_phi: f32, sin_phi: f32) -> vec3<f32> {
     return vec3<f32>(cos_phi * w.x + sin_phi * w.y, -sin_phi * w.x + cos_phi * w.y, w.z);
 }
 
-// fresnel::dielectric: exact unpolarized dielectric Fresnel reflectance (Born & Wolf §1.5); 1 under TIR.
-fn fresnel_dielectric(cos_in: f32, eta_in: f32) -> f32 {
+// fresnel::refraction_cosines: (|cos_i| ≤ 1, the relative IOR seen from the incident side, cos_t); cos_t < 0
+// marks total internal reflection (Rust: None).
+fn refraction_cosines(cos_in: f32, eta_in: f32) -> vec3<f32> {
     var cos_i = cos_in;
     var eta = eta_in;
     if cos_i < 0.0 {
@@ -21,9 +22,20 @@ fn fresnel_dielectric(cos_in: f32, eta_in: f32) -> f32 {
     cos_i = min(cos_i, 1.0);
     let sin2_t = (1.0 - cos_i * cos_i) / (eta * eta);
     if sin2_t >= 1.0 {
+        return vec3<f32>(cos_i, eta, -1.0);
+    }
+    return vec3<f32>(cos_i, eta, sqrt(1.0 - sin2_t));
+}
+
+// fresnel::dielectric: exact unpolarized dielectric Fresnel reflectance (Born & Wolf §1.5); 1 under TIR.
+fn fresnel_dielectric(cos_in: f32, eta_in: f32) -> f32 {
+    let r = refraction_cosines(cos_in, eta_in);
+    if r.z < 0.0 {
         return 1.0;
     }
-    let cos_t = sqrt(1.0 - sin2_t);
+    let cos_i = r.x;
+    let eta = r.y;
+    let cos_t = r.z;
     let r_s = (cos_i - eta * cos_t) / (cos_i + eta * cos_t);
     let r_p = (eta * cos_i - cos_t) / (eta * cos_i + cos_t);
     return 0.5 * (r_s * r_s + r_p * r_p);
@@ -31,18 +43,13 @@ fn fresnel_dielectric(cos_in: f32, eta_in: f32) -> f32 {
 
 // fresnel::dielectric_transmittance: 1 − F without cancellation near grazing incidence; 0 under TIR.
 fn fresnel_dielectric_transmittance(cos_in: f32, eta_in: f32) -> f32 {
-    var cos_i = cos_in;
-    var eta = eta_in;
-    if cos_i < 0.0 {
-        cos_i = -cos_i;
-        eta = 1.0 / eta;
-    }
-    cos_i = min(cos_i, 1.0);
-    let sin2_t = (1.0 - cos_i * cos_i) / (eta * eta);
-    if sin2_t >= 1.0 {
+    let r = refraction_cosines(cos_in, eta_in);
+    if r.z < 0.0 {
         return 0.0;
     }
-    let cos_t = sqrt(1.0 - sin2_t);
+    let cos_i = r.x;
+    let eta = r.y;
+    let cos_t = r.z;
     let s = cos_i + eta * cos_t;
     let p = eta * cos_i + cos_t;
     return 2.0 * eta * cos_i * cos_t * (1.0 / (s * s) + 1.0 / (p * p));
