@@ -9,7 +9,7 @@ import os
 import lamina
 import numpy as np
 import pytest
-from hypothesis import given, settings
+from hypothesis import assume, given, settings
 from hypothesis import strategies as st
 from lamina import gpu, materials
 
@@ -112,6 +112,9 @@ def test_random_belcour_stacks(ior, coat, angle, sigma_a, base, seed):
     seed=st.integers(0, 1000),
 )
 def test_random_conductors(eta, k, ax, ay, angle, seed):
+    # η + iκ near 1 + 0i reflects nothing but the rounding of a difference of equal terms (F = 0 exactly at η = 1,
+    # κ = 0): below float32's resolution, and no material.
+    assume(abs(eta - 1.0) > 0.05 or k > 0.05)
     stack = lamina.Stack([lamina.Conductor(eta, k, (ax, ay), angle=angle)])
     assert_parity(stack, n=2000, seed=seed)
 

@@ -158,6 +158,13 @@ pub fn eval_one(model: &dyn Model, wi: DVec3, wo: DVec3, inputs: &[Option<[f64; 
 /// f(wi, wo) for many wi and one wo with one set of per-element input values: out[k] is f at wis[k] (3 channels),
 /// evaluated in blocks of BLOCK rows (a renderer's samples at one pixel).
 pub fn eval_fan(model: &dyn Model, wo: DVec3, inputs: &[Option<[f64; 3]>], wis: &[DVec3], out: &mut [[f64; 3]]) {
+    if wis.len() <= 4 {
+        // A few directions (a pixel under point lights): one row at a time, without zeroing a block's scratch.
+        for (wi, o) in wis.iter().zip(out.iter_mut()) {
+            eval_one(model, *wi, wo, inputs, o);
+        }
+        return;
+    }
     let mut cols = [[[0.0; BLOCK]; 3]; 2];
     let inputs_cols: [[[f64; BLOCK]; 3]; MAX_INPUTS] =
         std::array::from_fn(|j| inputs.get(j).copied().flatten().unwrap_or_default().map(|x| [x; BLOCK]));
