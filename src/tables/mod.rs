@@ -30,14 +30,23 @@ fn cache_dir() -> Option<PathBuf> {
 
 /// A table of `len` f32 values: read from the cache file `name` when present and of the right size, else
 /// generated and written there (atomically; a failed write only costs the next process a regeneration).
-pub fn cached(name: &str, len: usize, generate: impl FnOnce() -> Vec<f32>) -> Vec<f32> {
+pub fn cached(name: &str, len: usize, generate: impl FnOnce() -> Vec<f32> + Send) -> Vec<f32> {
     let path = cache_dir().map(|d| d.join(name));
     if let Some(bytes) = path.as_ref().and_then(|p| std::fs::read(p).ok()) {
         if bytes.len() == 4 * len {
             return bytes.chunks_exact(4).map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]])).collect();
         }
     }
-    let data = generate();
+    // Generated on a thread and a pool of their own, the caller waiting in a plain join. The caller holds the table's
+    // OnceLock meanwhile: a rayon worker waiting for parallel work steals other jobs, and one that looks this table up
+    // would re-enter the lock and deadlock; global-pool workers blocked on the lock must not be needed either.
+    let data = std::thread::scope(|scope| {
+        let worker = scope.spawn(|| match rayon::ThreadPoolBuilder::new().build() {
+            Ok(pool) => pool.install(generate),
+            Err(_) => generate(),
+        });
+        worker.join().unwrap_or_else(|panic| std::panic::resume_unwind(panic))
+    });
     assert_eq!(data.len(), len, "table {name}");
     if let Some(path) = path {
         let bytes: Vec<u8> = data.iter().flat_map(|v| v.to_le_bytes()).collect();
