@@ -4,7 +4,7 @@
 use super::api::{parse_options, parse_stack};
 use super::arrays::{batch, Kind};
 use crate::gpu;
-use crate::render::Light;
+use crate::render::{pinhole, Light};
 use numpy::{PyArrayDyn, PyArrayMethods, PyUntypedArrayMethods};
 use pyo3::exceptions::{PyRuntimeError, PyValueError};
 use pyo3::prelude::*;
@@ -118,14 +118,9 @@ pub fn render_gpu<'py>(
         }
     };
     let camera = camera.map(|(o, t, fov)| {
-        // Scene::ray's pinhole: forward, right and up, the latter two scaled by tan(fov/2) (and the aspect).
-        let (o, t) = (glam::DVec3::from_array(o), glam::DVec3::from_array(t));
-        let forward = (t - o).normalize();
-        let right = forward.cross(glam::DVec3::Y).normalize();
-        let up = right.cross(forward);
-        let h = (0.5 * fov).tan();
-        let aspect = width as f64 / height as f64;
-        [o, forward, right * h * aspect, up * h].map(|v| v.as_vec3().to_array())
+        let o = glam::DVec3::from_array(o);
+        let [forward, right, up] = pinhole(o, glam::DVec3::from_array(t), fov, width as f64 / height as f64);
+        [o, forward, right, up].map(|v| v.as_vec3().to_array())
     });
     let mut rows = Vec::new();
     for (kind, v, rgb) in &lights {

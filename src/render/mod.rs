@@ -105,12 +105,8 @@ impl Scene {
         match self.camera {
             Camera::Orthographic => (DVec3::new(x, y, 10.0), DVec3::NEG_Z),
             Camera::Perspective { origin, target, fov } => {
-                let forward = (target - origin).normalize();
-                let right = forward.cross(DVec3::Y).normalize();
-                let up = right.cross(forward);
-                let h = (0.5 * fov).tan();
-                let aspect = self.width as f64 / self.height as f64;
-                (origin, (forward + x * h * aspect * right + y * h * up).normalize())
+                let [forward, right, up] = pinhole(origin, target, fov, self.width as f64 / self.height as f64);
+                (origin, (forward + x * right + y * up).normalize())
             }
         }
     }
@@ -148,6 +144,15 @@ impl Scene {
             }
         }
     }
+}
+
+/// A pinhole camera's forward, right and up vectors (+y up), right and up scaled by tan(fov/2) times the aspect and
+/// by tan(fov/2): the ray through image point (x, y) ∈ [−1, 1]² is normalize(forward + x right + y up).
+pub fn pinhole(origin: DVec3, target: DVec3, fov: f64, aspect: f64) -> [DVec3; 3] {
+    let forward = (target - origin).normalize();
+    let right = forward.cross(DVec3::Y).normalize();
+    let h = (0.5 * fov).tan();
+    [forward, right * h * aspect, right.cross(forward) * h]
 }
 
 /// The lights' directions and irradiances at the point p (towards the light, world frame).
