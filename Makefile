@@ -9,7 +9,7 @@ VPY := $(VENV)/bin/python
 # fails without one unless LAMINA_SKIP_GPU=1 says to skip it.
 LLVM = DRJIT_LIBLLVM_PATH="$$($(PY) tests/libllvm.py)"
 
-.PHONY: demo test lint wheel-test develop venv test-deps system-deps rust-test py-test bench validation reference reliability fuzz readme chart clean
+.PHONY: demo test lint wheel-test develop venv test-deps system-deps rust-test py-test bench validation reference reliability fuzz readme chart population atlas oat notebooks clean
 
 $(VPY):
 	$(PY) -m venv $(VENV)
@@ -49,7 +49,7 @@ system-deps:
 	fi
 
 test-deps: venv system-deps
-	$(VPY) -m pip install -q "pytest>=7" "hypothesis>=6" "colour-science>=0.4.4" scipy "mitsuba>=3.9,<3.10" "ruff==0.17.6" "dask[distributed]>=2024.1" mypy
+	$(VPY) -m pip install -q "pytest>=7" "hypothesis>=6" "colour-science>=0.4.4" scipy "mitsuba>=3.9,<3.10" "ruff==0.17.6" "dask[distributed]>=2024.1" mypy nbclient nbformat ipykernel
 
 rust-test:
 	cargo test --release
@@ -102,7 +102,26 @@ fuzz: develop
 	$(VPY) scripts/fuzz.py
 	$(VPY) scripts/reliability.py
 
-# docs/speed_accuracy.json and .png: every model's CPU cost against its error on the suite (and the reference's).
+# lamina.choose's data and its validation: every candidate model against the reference on 300 random stacks of
+# lamina.materials.population (about 15 minutes on 2 cores; the references are cached, so it resumes). Writes
+# docs/population.json, python/lamina/data/choose.json and docs/choose.md.
+population: develop
+	$(VPY) scripts/population.py
+
+# The failure atlas: docs/atlas.md, docs/atlas/*.png and docs/atlas.json (about 10 minutes on 2 cores; resumes).
+atlas: develop
+	$(VPY) scripts/atlas.py
+
+# Executes every notebook on a kernel and writes it back with its outputs (figures), for readers.
+notebooks: develop test-deps
+	$(LLVM) $(VPY) scripts/run_notebooks.py
+
+# docs/oat.md, docs/oat.png and docs/oat_slab.png: Oat 2006's variants (frame time, difference) and blur radii.
+oat: develop
+	$(VPY) scripts/oat_report.py
+
+# docs/speed_accuracy.json and .png: every model's cost against its error on the suite and on the held-out
+# population (whose references `make population` caches), the reference's, and the GPU path's.
 chart: develop
 	$(VPY) scripts/speed_accuracy.py
 

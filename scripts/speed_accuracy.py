@@ -1,15 +1,17 @@
-"""Speed against accuracy (`make chart`): one point per model and variant — the cost of one evaluation on the CPU
-against its error relative to the Monte Carlo reference on the material suite — and the reference itself at several
-sample counts. Writes docs/speed_accuracy.json and docs/speed_accuracy.png. Not a test.
+"""Speed against accuracy (`make chart`, after `make population`): one point per model and variant — the cost of
+one evaluation against its error relative to the Monte Carlo reference — on two sets: the material suite and the
+held-out population (lamina.materials.population(200, seed=1), whose references `make population` caches); the
+reference itself at several path counts (suite only); and the GPU path for the models it has, on the adapter lamina
+finds (labelled with it). Writes docs/speed_accuracy.json and docs/speed_accuracy.png. Not a test.
 
-- Cost: ns per evaluation, the median of 5 calls on 1M random float32 pairs of rough-coat-rough-copper (2 layers,
-  RGB) after the first call, which prepares the model and is reported on its own (prepare_ms). The reference's cost
-  is its time per NEE estimate of f at that sample count, per pair.
+- Cost: lamina.atlas.cost: ns per evaluation, the median of 5 calls on 1M random float32 pairs of
+  rough-coat-rough-copper (2 layers, RGB) after the first call, which prepares the model and is reported on its own
+  (prepare_ms). The reference's cost is its time per NEE estimate of f at that path count, per pair.
 - Error, per band of incidence (0–60°, 60–80°, 80–89°; the suite grid's θi of 0/30/60, 80 and 87°), averaged over
-  the suite: the relative L1 lobe error Σ|f − f_ref| / Σ|f_ref| over the grid's 30 outgoing directions and RGB, and
-  the absolute albedo error (green) against the brute-force reference albedo. Error bars: the reference's own
-  relative standard error, Σ SE / Σ|f_ref|.
-- The Pareto front joins the points that no other point beats in both cost and error (0–60° band).
+  the set: the relative L1 lobe error Σ|f − f_ref| / Σ|f_ref| over the grid's 30 outgoing directions and RGB, and
+  the absolute albedo error (green) of the model's albedo (mean weight of its own sampling, lamina.atlas.model_albedo)
+  against the brute-force reference albedo. Error bars: the reference's own relative standard error, Σ SE / Σ|f_ref|.
+- The Pareto front joins the points that no other point beats in both cost and error, per set and band.
 """
 
 from __future__ import annotations
@@ -20,11 +22,14 @@ import time
 from pathlib import Path
 
 import lamina
+import lamina.mitsuba
 import numpy as np
-from lamina.reference import SUITE_THETAS, suite_reference, suite_reference_albedo
+from lamina import atlas
+from lamina.reference import SUITE_THETAS, cached_reference, suite_directions, suite_reference, suite_reference_albedo
+from tqdm import tqdm
 
 ROOT = Path(__file__).resolve().parents[1]
-N = 1_000_000
+POPULATION = 200
 BANDS = {"0-60": [0, 1, 2], "60-80": [3], "80-89": [4]}
 #: (label, model, options): each model's published form and its variants.
 VARIANTS = [
@@ -34,55 +39,65 @@ VARIANTS = [
     ("steinberg (lamina defaults)", "steinberg", {}),
     ("steinberg published", "steinberg", {"clamp_roughness": False, "eta2": False}),
     ("steinberg fitted LUT", "steinberg", {"lut": "fitted"}),
+    ("steinberg + interreflection", "steinberg", {"interreflection": True}),
     ("weidlich_wilkie (lamina defaults)", "weidlich_wilkie", {}),
     ("weidlich_wilkie published", "weidlich_wilkie", {"clamp_roughness": False, "eta2": False}),
     ("weidlich_wilkie precomputed", "weidlich_wilkie", {"precomputed": True}),
     ("weidlich_wilkie Lazányi", "weidlich_wilkie", {"fresnel": "lazanyi"}),
+    ("weidlich_wilkie + interreflection", "weidlich_wilkie", {"interreflection": True}),
     ("albedo_scaling reciprocal", "albedo_scaling", {}),
     ("albedo_scaling view", "albedo_scaling", {"scaling": "view"}),
 ]
 REFERENCE_SAMPLES = (100, 300, 1000, 3000)
 
 
-def cost(model: str, options: dict) -> tuple:
-    """(ns per evaluation, first-call ms) on 1M float32 pairs of the 2-layer stack."""
-    rng = np.random.default_rng(0)
-    w = rng.normal(size=(2, N, 3))
-    w[..., 2] = np.abs(w[..., 2])
-    wi, wo = w.astype(np.float32)
-    stack = lamina.materials.suite("rough-coat-rough-copper")
-    t0 = time.perf_counter()
-    stack.eval(wi[:10], wo[:10], model, **options)
-    first = time.perf_counter() - t0
-    times = []
-    for _ in range(5):
-        t0 = time.perf_counter()
-        stack.eval(wi, wo, model, **options)
-        times.append(time.perf_counter() - t0)
-    return float(np.median(times)) / N * 1e9, first * 1e3
+def suite_set() -> list:
+    """The suite as (stack, f_ref, se, reference albedo (green)) items on the suite grid."""
+    items = []
+    for name in lamina.materials.SUITE:
+        _, _, f, se = suite_reference(name, samples=20_000)
+        items.append((lamina.materials.suite(name), f, se, suite_reference_albedo(name)[1][:, 1]))
+    return items
 
 
-def suite_errors(evaluate) -> dict:
-    """Mean over the suite of the lobe error and |albedo error| per band; `evaluate(stack, wi, wo)` returns f, and
-    None for a stack the model cannot represent (left out of the means, counted in `unsupported`)."""
+def population_set() -> list:
+    """The held-out population (lamina.materials.population(POPULATION, seed=1)) as suite_set's items, from the
+    references `make population` computed and cached."""
+    wi, wo = suite_directions()
+    items = []
+    for _, stack in tqdm(lamina.materials.population(POPULATION, 1), desc="population references", unit="stack"):
+        f, se = cached_reference(stack, wi, wo, samples=atlas.GROUND_TRUTH_SAMPLES, seed=0, progress=False)
+        items.append((stack, f, se, atlas.reference_albedo(stack, samples=atlas.ALBEDO_SAMPLES)[0][:, 1]))
+    return items
+
+
+def errors(items: list, evaluate) -> dict:
+    """Means over `items` of the lobe error and |albedo error| per band; `evaluate(stack, wi, wo)` returns
+    (f, green albedo or None), and raises ValueError for a stack the model cannot represent (left out of the means,
+    counted in `unsupported`). Stacks whose reference noise exceeds lamina.atlas.MAX_NOISE at some angle count in
+    `unresolved` and are left out of the lobe error: a smooth clear coat over a near-mirror layer puts lobes on grid
+    directions that the reference's paths do not resolve."""
+    wi, wo = suite_directions()
     lobe = {b: [] for b in BANDS}
     albedo = {b: [] for b in BANDS}
     spread = {b: [] for b in BANDS}
+    unresolved = {b: 0 for b in BANDS}
     unsupported = 0
-    for name in lamina.materials.SUITE:
-        stack = lamina.materials.suite(name)
-        wi, wo, f, se = suite_reference(name, samples=20_000)
+    for stack, f, se, a_ref in items:
         try:
             b, a = evaluate(stack, wi, wo)
         except ValueError:
             unsupported += 1
             continue
-        err = np.abs(b - f).sum(axis=(1, 2)) / np.abs(f).sum(axis=(1, 2))
+        err = atlas.lobe_errors(b, f)
         rel_se = se.sum(axis=(1, 2)) / np.abs(f).sum(axis=(1, 2))
-        a_err = np.abs(a - reference_albedo(name)) if a is not None else np.full(len(err), np.nan)
+        a_err = np.abs(a - a_ref) if a is not None else np.full(len(err), np.nan)
         for band, k in BANDS.items():
-            lobe[band].append(err[k].mean())
             albedo[band].append(a_err[k].mean())
+            if rel_se.max() > atlas.MAX_NOISE:  # the reference does not resolve this stack's lobes: nothing to measure
+                unresolved[band] += 1
+                continue
+            lobe[band].append(err[k].mean())
             spread[band].append(rel_se[k].mean())
     # None where a model has no albedo to compare (the reference's f estimates): JSON has no NaN.
     mean = lambda d: {b: (float(np.mean(v)) if np.all(np.isfinite(v)) else None) for b, v in d.items()}  # noqa: E731
@@ -91,43 +106,98 @@ def suite_errors(evaluate) -> dict:
         "albedo_error": mean(albedo),
         "reference_rel_se": mean(spread),
         "unsupported": unsupported,
+        "unresolved": unresolved,
     }
 
 
-_ALBEDO: dict = {}
-
-
-def reference_albedo(name: str) -> np.ndarray:
-    """The suite's brute-force reference albedo at SUITE_THETAS, green channel (smooth tops' Dirac removed)."""
-    if name not in _ALBEDO:
-        _ALBEDO[name] = suite_reference_albedo(name)[1][:, 1]
-    return _ALBEDO[name]
-
-
-def model_rows() -> list:
+def model_rows(sets: dict) -> list:
+    """A row per variant and set, and per GPU-capable variant a GPU row (float32, on the adapter lamina finds)."""
     rows = []
+    gpu = lamina.gpu.adapter() if hasattr(lamina, "gpu") else None
     for label, model, options in VARIANTS:
-        ns, prepare = cost(model, options)
+        ns, prepare = atlas.cost(model, options)
+        for device in ("cpu", "gpu") if gpu and model in lamina.gpu.models() and not options else ("cpu",):
 
-        def evaluate(stack, wi, wo, m=model, o=options):
-            return stack.eval(wi, wo, m, **o), stack.albedo(wi[:, 0, :], m, **o)[:, 1]
+            def evaluate(stack, wi, wo, m=model, o=options, device=device):
+                f = stack.eval(wi, wo, m, device=device, **o)
+                return f, atlas.model_albedo(stack, m, o)[:, 1]
 
-        rows.append(
-            {
-                "label": label,
-                "model": model,
-                "options": options,
-                "ns_per_eval": ns,
-                "prepare_ms": prepare,
-                "set": "suite",
-                **suite_errors(evaluate),
-            }
-        )
-        print(f"{label:36s} {ns:8.1f} ns  lobe error {rows[-1]['lobe_error']}", file=sys.stderr)
+            if device == "gpu":
+                ns, prepare = atlas.cost(model, options, device="gpu")
+            for name, items in sets.items():
+                rows.append(
+                    {
+                        "label": label if device == "cpu" else f"{label} GPU ({gpu['name']})",
+                        "model": model,
+                        "options": options,
+                        "device": device,
+                        "ns_per_eval": ns,
+                        "prepare_ms": prepare,
+                        "set": name,
+                        **errors(items, evaluate),
+                    }
+                )
+                print(f"{rows[-1]['label']:36s} {name:10s} {ns:8.1f} ns  {rows[-1]['lobe_error']}", file=sys.stderr)
     return rows
 
 
-def reference_rows() -> list:
+def principled_cost(n: int = 1_000_000, repeats: int = 5) -> tuple:
+    """Mitsuba principled's ns per evaluation as its users call it, np.array(bsdf.eval(ctx, si, wo)) on n random
+    float32 pairs (llvm_ad_rgb), of rough-coat-rough-copper's closest principled; and its first call in ms."""
+    import drjit as dr
+    import mitsuba as mi
+
+    if lamina.mitsuba.variant() != "llvm_ad_rgb":
+        raise SystemExit("the principled row needs Mitsuba's llvm_ad_rgb (a libLLVM >= 16: see tests/libllvm.py)")
+    rng = np.random.default_rng(0)
+    w = rng.normal(size=(2, n, 3))
+    w[..., 2] = np.abs(w[..., 2])
+    b = mi.load_dict(lamina.mitsuba.principled(lamina.materials.suite("rough-coat-rough-copper")))
+    si = dr.zeros(mi.SurfaceInteraction3f, n)
+    si.wi = mi.Vector3f(np.ascontiguousarray(w[1].T, dtype=np.float32))
+    wo, ctx = mi.Vector3f(np.ascontiguousarray(w[0].T, dtype=np.float32)), mi.BSDFContext()
+    t0 = time.perf_counter()
+    np.array(b.eval(ctx, si, wo))
+    first = time.perf_counter() - t0
+    times = []
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        np.array(b.eval(ctx, si, wo))
+        times.append(time.perf_counter() - t0)
+    return float(np.median(times)) / n * 1e9, first * 1e3
+
+
+def principled_rows(sets: dict) -> list:
+    """Mitsuba's principled, on the closest principled of each stack (lamina.mitsuba.principled)."""
+    ns, prepare = principled_cost()
+    t = np.radians(SUITE_THETAS)
+    rows = []
+
+    def evaluate(stack, wi, wo):
+        d = lamina.mitsuba.principled(stack)
+        wi_b, wo_b = np.broadcast_arrays(wi, wo)
+        f = lamina.mitsuba.eval_f(d, wi_b.reshape(-1, 3), wo_b.reshape(-1, 3)).reshape(wi_b.shape)
+        a = lamina.mitsuba.albedo(d, np.stack([np.sin(t), np.zeros_like(t), np.cos(t)], -1))[:, 1]
+        return f, a
+
+    for name, items in sets.items():
+        rows.append(
+            {
+                "label": "Mitsuba principled",
+                "model": "principled",
+                "options": {},
+                "device": "cpu",
+                "ns_per_eval": ns,
+                "prepare_ms": prepare,
+                "set": name,
+                **errors(items, evaluate),
+            }
+        )
+        print(f"Mitsuba principled {name:10s} {ns:8.1f} ns  {rows[-1]['lobe_error']}", file=sys.stderr)
+    return rows
+
+
+def reference_rows(items: list) -> list:
     rows = []
     for samples in REFERENCE_SAMPLES:
         clock = {"seconds": 0.0, "pairs": 0}
@@ -139,7 +209,7 @@ def reference_rows() -> list:
             clock["pairs"] += f.shape[0] * f.shape[1]
             return f, None
 
-        errors = suite_errors(evaluate)
+        errs = errors(items, evaluate)
         rows.append(
             {
                 "label": f"reference, {samples} paths",
@@ -147,8 +217,9 @@ def reference_rows() -> list:
                 "options": {"samples": samples},
                 "ns_per_eval": clock["seconds"] / clock["pairs"] * 1e9,
                 "prepare_ms": 0.0,
+                "device": "cpu",
                 "set": "suite",
-                **errors,
+                **errs,
             }
         )
         print(f"reference {samples:6d} {rows[-1]['ns_per_eval']:10.0f} ns  {rows[-1]['lobe_error']}", file=sys.stderr)
@@ -157,6 +228,7 @@ def reference_rows() -> list:
 
 def pareto(rows: list, band: str) -> list:
     """Rows that no other row beats in both cost and lobe error, by increasing cost."""
+    rows = [r for r in rows if r["lobe_error"][band] is not None]
     front = [
         r
         for r in rows
@@ -180,52 +252,58 @@ def plot(rows: list, path: Path) -> None:
         "steinberg": "tab:orange",
         "weidlich_wilkie": "tab:green",
         "albedo_scaling": "tab:purple",
+        "principled": "tab:red",
         "reference": "black",
     }
-    fig, axes = plt.subplots(1, 3, figsize=(18, 7), sharey=True, constrained_layout=True)
-    for ax, band in zip(axes, BANDS):
-        for i, r in enumerate(sorted(rows, key=lambda r: (r["ns_per_eval"], r["lobe_error"][band]))):
-            y, se = r["lobe_error"][band], r["reference_rel_se"][band]
-            marker = "s" if r["model"] == "reference" else "o"
-            ax.errorbar(r["ns_per_eval"], y, yerr=se, fmt=marker, color=colours[r["model"]], ms=6, capsize=2)
-            # Neighbours in cost get labels at staggered heights, so that clusters stay legible.
-            ax.annotate(
-                r["label"],
-                (r["ns_per_eval"], y),
-                fontsize=6.5,
-                xytext=(5, 9 * (i % 4) - 12),
-                textcoords="offset points",
-                arrowprops={"arrowstyle": "-", "lw": 0.4, "color": "grey"},
+    sets = {"suite": "the material suite (8 stacks)", "population": f"the held-out population ({POPULATION} stacks)"}
+    fig, axes = plt.subplots(2, 3, figsize=(18, 13), sharey=True, constrained_layout=True)
+    for row_axes, (name, title) in zip(axes, sets.items()):
+        subset = [r for r in rows if r["set"] == name]
+        for ax, band in zip(row_axes, BANDS):
+            for i, r in enumerate(sorted(subset, key=lambda r: (r["ns_per_eval"], r["lobe_error"][band]))):
+                y, se = r["lobe_error"][band], r["reference_rel_se"][band]
+                marker = "s" if r["model"] == "reference" else ("D" if r.get("device") == "gpu" else "o")
+                ax.errorbar(r["ns_per_eval"], y, yerr=se, fmt=marker, color=colours[r["model"]], ms=6, capsize=2)
+                # Neighbours in cost get labels at staggered heights, so that clusters stay legible.
+                ax.annotate(
+                    r["label"],
+                    (r["ns_per_eval"], y),
+                    fontsize=6.5,
+                    xytext=(5, 9 * (i % 4) - 12),
+                    textcoords="offset points",
+                    arrowprops={"arrowstyle": "-", "lw": 0.4, "color": "grey"},
+                )
+            front = pareto(subset, band)
+            ax.plot(
+                [r["ns_per_eval"] for r in front],
+                [r["lobe_error"][band] for r in front],
+                "--",
+                color="grey",
+                lw=1,
+                label="Pareto front",
             )
-        front = pareto(rows, band)
-        ax.plot(
-            [r["ns_per_eval"] for r in front],
-            [r["lobe_error"][band] for r in front],
-            "--",
-            color="grey",
-            lw=1,
-            label="Pareto front",
-        )
-        ax.set(
-            xscale="log",
-            yscale="log",
-            xlabel="CPU cost per evaluation (ns, 1M pairs, 2 threads)",
-            title=f"θi {band.replace('-', '–')}°",
-        )
-        ax.grid(True, which="both", alpha=0.3)
-    axes[0].set_ylabel("mean relative L1 lobe error vs the reference (suite)")
+            ax.set(
+                xscale="log",
+                yscale="log",
+                xlabel="cost per evaluation (ns, 1M pairs; CPU: 2 threads)",
+                title=f"{title}, θi {band.replace('-', '–')}°",
+            )
+            ax.grid(True, which="both", alpha=0.3)
+        row_axes[0].set_ylabel(f"mean relative L1 lobe error vs the reference ({name})")
     handles = [
         plt.Line2D([], [], marker="s" if m == "reference" else "o", ls="", color=c, label=m) for m, c in colours.items()
     ]
-    axes[-1].legend(
+    handles.append(plt.Line2D([], [], marker="D", ls="", color="grey", label="GPU (wgpu, float32)"))
+    axes[0, -1].legend(
         handles=handles + [plt.Line2D([], [], ls="--", color="grey", label="Pareto front")],
         loc="upper right",
         fontsize=8,
     )
     fig.suptitle(
-        "lamina: speed against accuracy on the material suite (error bars: the reference's own standard error)"
+        "lamina: speed against accuracy (error bars: the reference's own relative standard error; the reference "
+        "at several path counts on the suite only)"
     )
-    fig.savefig(path, dpi=140)
+    fig.savefig(path, dpi=120)
 
 
 def main() -> None:
@@ -233,7 +311,8 @@ def main() -> None:
     if sys.argv[1:] == ["--plot"]:  # redraw the figure from the JSON
         plot(json.loads(out.read_text())["rows"], ROOT / "docs" / "speed_accuracy.png")
         return
-    rows = model_rows() + reference_rows()
+    sets = {"suite": suite_set(), "population": population_set()}
+    rows = model_rows(sets) + principled_rows(sets) + reference_rows(sets["suite"])
     out.write_text(
         json.dumps(
             {

@@ -627,6 +627,89 @@ def elek_section():
     return out
 
 
+def corrections_section():
+    """lamina's corrections beyond the published models, each switched on alone, against the reference on the
+    suite: the mean lobe error at θi ≤ 80° with and without it (issue: improved variants)."""
+    from lamina.reference import SUITE_THETAS, suite_reference
+
+    low = np.array(SUITE_THETAS) <= 80
+    out = [
+        "",
+        "## lamina's corrections, one at a time",
+        "",
+        "`interreflection`: the geometric series 1/(1 − ρ r) of inter-reflections between a diffuse base and the coat "
+        "above it, r = F̄(1/η) T̄² (single_pass.rs, `add_interreflection`); exact for a smooth clear coat over Lambert "
+        "(tests/test_single_pass.py). Mean lobe error over θi ∈ {0, 30, 60, 80}°, against the reference (20k paths):",
+        "",
+        "| material | steinberg | + interreflection | weidlich_wilkie | + interreflection |",
+        "|---|---:|---:|---:|---:|",
+    ]
+    for name in lamina.materials.SUITE:
+        stack = lamina.materials.suite(name)
+        wi, wo, f, _ = suite_reference(name, samples=20_000)
+        cells = []
+        for model in ("steinberg", "weidlich_wilkie"):
+            for on in (False, True):
+                b = stack.eval(wi, wo, model, interreflection=on)
+                cells.append(f"{np.mean((np.abs(b - f).sum(axis=(1, 2)) / np.abs(f).sum(axis=(1, 2)))[low]):.3f}")
+        out.append(f"| {name} | " + " | ".join(cells) + " |")
+    return out
+
+
+def principled_section():
+    """Mitsuba's principled on the closest principled of each suite stack (lamina.mitsuba.principled) against the
+    reference, and where its formulas coincide with lamina's primitives or not."""
+    import lamina.mitsuba as lm
+    from lamina.reference import SUITE_THETAS, suite_reference
+
+    t = np.radians(SUITE_THETAS)
+    lights = np.stack([np.sin(t), np.zeros_like(t), np.cos(t)], -1)
+    out = [
+        "",
+        f"## Mitsuba {mi.__version__} `principled` (the production model) against the reference",
+        "",
+        "Where principled's formulas coincide with lamina's primitives, tests/test_principled.py checks them to 5e-4 "
+        "(float32): the metallic lobe (Schlick F with F0 = base_color, GGX D with alpha = roughness² ≥ 1e-3, "
+        "separable Smith G, over 4 cos θi cos θo) and the dielectric specular lobe (exact Fresnel at `eta`). Where "
+        "they do not: the clearcoat is GTR1 (alpha = lerp(0.1, 0.001, clearcoat_gloss)) with a fixed G of alpha 0.25, "
+        "Schlick with F0 = 0.04, weight clearcoat/4 and no 1/(4 cos θi cos θo), added on top of the base without "
+        "attenuating it (no coat refraction, no absorption, no inter-reflection); the diffuse lobe is Burley's with "
+        "retro-reflection (FD90 = 0.5 + 2 roughness cos²θd), not Lambert or Oren–Nayar; sheen has no 1/π.",
+        "",
+        "Each suite stack is mapped onto its closest principled by `lamina.mitsuba.principled` (its docstring gives "
+        "the rules); the lobe error is measured on the suite grid as for lamina's models, and the albedo (green) "
+        f"is principled's own sampling's mean weight ({MI_RGB}).",
+        "",
+        "| material | principled parameters | lobe error "
+        + " / ".join(f"{x:g}°" for x in SUITE_THETAS)
+        + " | albedo error "
+        + " / ".join(f"{x:g}°" for x in SUITE_THETAS)
+        + " |",
+        "|---|---|---|---|",
+    ]
+    for name in lamina.materials.SUITE:
+        stack = lamina.materials.suite(name)
+        d = lm.principled(stack)
+        wi, wo, f, _ = suite_reference(name, samples=20_000)
+        wi_b, wo_b = np.broadcast_arrays(wi, wo)
+        b = lm.eval_f(d, wi_b.reshape(-1, 3), wo_b.reshape(-1, 3)).reshape(wi_b.shape)
+        lobe = np.abs(b - f).sum(axis=(1, 2)) / np.abs(f).sum(axis=(1, 2))
+        albedo = lm.albedo(d, lights)[:, 1] - reference_albedo(name)
+        params = ", ".join(
+            f"{k} {np.round(v['value'], 3).tolist() if isinstance(v, dict) else round(v, 3)}"
+            for k, v in d.items()
+            if k not in ("type", "spec_tint", "sheen")
+        )
+        out.append(
+            f"| {name} | {params} | "
+            + " / ".join(f"{x:.3f}" for x in lobe)
+            + " | "
+            + " / ".join(f"{x:+.3f}" for x in albedo)
+            + " |"
+        )
+    return out
+
+
 def main():
     rng = np.random.default_rng(7)
     out = [
@@ -685,6 +768,8 @@ def main():
     out += reference_section()
     out += belcour_section()
     out += single_pass_section()
+    out += corrections_section()
+    out += principled_section()
     path = ROOT / "docs" / "validation.md"
     path.write_text("\n".join(out) + "\n")
     print(f"wrote {path}", file=sys.stderr)

@@ -72,6 +72,17 @@ def test_docstring_and_readme_are_generated_from_the_catalogue():
     assert markdown_table() in readme, "README's model table is stale: run `make readme`"
 
 
+def test_readme_chart_table_is_generated_from_the_chart_data():
+    import json
+    import sys
+
+    sys.path.insert(0, str(ROOT / "scripts"))
+    from readme_tables import chart_table
+
+    chart = json.loads((ROOT / "docs" / "speed_accuracy.json").read_text())
+    assert chart_table(chart) in (ROOT / "README.md").read_text(), "README's chart table is stale: run `make readme`"
+
+
 def test_model_names_and_foreign_options_are_refused():
     stack, w = lamina.materials.preset("coated-copper"), np.array([0.0, 0.0, 1.0])
     with pytest.raises(ValueError, match="'reference'"):

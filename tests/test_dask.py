@@ -55,3 +55,11 @@ def test_distributed_sweeps_equal_local_runs(client, rng):
     for name, (_, _, f_s, se_s) in suite.items():
         ref = lamina.reference.suite_reference(name, samples=500)
         assert np.array_equal(f_s, ref[2]) and np.array_equal(se_s, ref[3])
+
+
+def test_atlas_plane_over_a_client_equals_a_local_run(client, tmp_path, monkeypatch):
+    """The failure atlas's cells as one task per stack: the same numbers as a local run in a fresh cache."""
+    remote = lamina.atlas.atlas_plane("theta-coat-ior", client=client, samples=200)
+    monkeypatch.setenv("LAMINA_CACHE", str(tmp_path))
+    local = lamina.atlas.atlas_plane("theta-coat-ior", samples=200)
+    assert remote == local

@@ -1,5 +1,6 @@
 """Smoke test of an installed lamina wheel (run by `make wheel-test` from outside the source tree): it imports from
-site-packages, carries py.typed and the extension's stubs, and evaluates, samples and lists its models."""
+site-packages, carries py.typed and the extension's stubs, and evaluates, samples, chooses a model and lists its
+models."""
 
 from pathlib import Path
 
@@ -17,4 +18,6 @@ wo = np.array([0.3, 0.1, 0.9])
 f = stack.eval(wo * [-1, -1, 1], wo, "belcour")
 wi, weight, pdf = stack.sample(wo, np.full(3, 0.4), "steinberg")
 assert np.all(np.isfinite(f)) and f.shape == (3,) and pdf > 0
+choice = lamina.choose(stack, 0.2)  # its measured data (data/choose.json) ships in the wheel
+assert choice.model in lamina.MODELS and choice.cost_ns > 0, choice
 print(f"lamina {lamina.__version__} wheel OK: {len(lamina.models())} models, f = {np.round(f, 4).tolist()}")

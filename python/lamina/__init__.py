@@ -9,9 +9,10 @@ Evaluate f(wi, wo) of a layer stack on NumPy arrays:
 Conventions (local frame, z = normal, directions pointing away, f without the cosine): docs/conventions.md.
 """
 
-from . import materials, optics, reference
+from . import atlas, materials, oat, optics, reference
 from ._lamina import __version__
 from .catalogue import MODELS, models
+from .choose import Choice, choose
 from .layers import Conductor, Dielectric, Diffuse
 from .optics import jacobian_reflect, jacobian_refract
 from .pictures import gallery
@@ -22,6 +23,10 @@ from .stack import Stack
 __all__ = [
     "MODELS",
     "models",
+    "choose",
+    "Choice",
+    "atlas",
+    "oat",
     "Conductor",
     "Dielectric",
     "Diffuse",

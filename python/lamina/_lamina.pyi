@@ -1,5 +1,7 @@
 """Type stubs of the Rust extension. Arrays arrive broadcast by python/lamina/_arrays.py; see docs/conventions.md."""
 
+from typing import final
+
 import numpy as np
 from numpy.typing import NDArray
 
@@ -35,6 +37,12 @@ __all__ = [
     "read_obj",
     "reference_tally",
     "render",
+    "render_oat",
+    "oat_parallax",
+    "oat_poisson_filter",
+    "oat_light_map",
+    "oat_slab_exit",
+    "OatMaterial",
     "render_gpu",
     "sample",
     "sample_visible",
@@ -139,6 +147,43 @@ def render(
     height: int,
     spp: int,
     seed: int,
+    first: int,
+    rows: int,
+) -> _Array: ...
+def oat_parallax(uv: _Array, view: _Array, normal: _Array, thickness: _Array, texel: tuple[float, float]) -> _Array: ...
+def oat_poisson_filter(
+    image: _Array, uv: _Array, radius: _Array, texel: tuple[float, float], border: str
+) -> _Array: ...
+def oat_light_map(
+    normal_map: _Array,
+    shape: str | tuple,
+    lights: list[tuple[str, tuple[float, float, float], tuple[float, float, float]]],
+    dilate_passes: int,
+) -> _Array: ...
+def oat_slab_exit(thickness: float, sigma_s: float, sigma_a: float, g: float, samples: int, seed: int) -> _Array: ...
+
+@final
+class OatMaterial:
+    def __new__(
+        cls,
+        outer_albedo: _Array,
+        outer_opacity: _Array,
+        outer_normal: _Array,
+        inner: list[tuple[_Array, _Array | None, _Array]],
+        variant: str,
+        shadowing: bool,
+        border: str,
+        texel: tuple[float, float],
+        light_map: _Array | None,
+    ) -> OatMaterial: ...
+
+def render_oat(
+    materials: list[OatMaterial],
+    shape: str | tuple,
+    camera: tuple[tuple[float, float, float], tuple[float, float, float], float] | None,
+    lights: list[tuple[str, tuple[float, float, float], tuple[float, float, float]]],
+    width: int,
+    height: int,
     first: int,
     rows: int,
 ) -> _Array: ...

@@ -18,6 +18,21 @@ CHUNK = 1 << 18
 WORK_PER_CALL = 1 << 20
 
 
+#: Incident zenith angles (degrees) of the suite's reference grid.
+SUITE_THETAS = (0.0, 30.0, 60.0, 80.0, 87.0)
+
+
+def suite_directions() -> tuple[np.ndarray, np.ndarray]:
+    """The fixed grid of the suite's reference values: wi (5, 1, 3) at SUITE_THETAS in the x–z plane (φ = 0) and
+    wo (1, 30, 3) at θo ∈ {0, 20, 40, 60, 75, 85}° x φo ∈ {0, 45, 90, 135, 180}° (φo = 180° holds the mirror
+    direction); they broadcast to (5, 30, 3)."""
+    ti = np.radians(SUITE_THETAS)
+    wi = np.stack([np.sin(ti), np.zeros_like(ti), np.cos(ti)], -1)[:, None, :]
+    to, po = np.meshgrid(np.radians([0, 20, 40, 60, 75, 85]), np.radians([0, 45, 90, 135, 180]), indexing="ij")
+    wo = np.stack([np.sin(to) * np.cos(po), np.sin(to) * np.sin(po), np.cos(to)], -1).reshape(1, -1, 3)
+    return wi, wo
+
+
 def _progress(total: int, progress):
     if progress is False or (progress is None and total < 4 * CHUNK):
         return None

@@ -16,7 +16,7 @@ def _parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="lamina", description=__doc__)
     parser.add_argument("--version", action="version", version=f"lamina {__version__}")
     sub = parser.add_subparsers(dest="command", required=True)
-    p = sub.add_parser("plot", help="write in-plane BRDF slices of a preset material to a PNG")
+    p = sub.add_parser("plot", help="write BRDF slices of a preset material (PNG, PDF or SVG)")
     p.add_argument(
         "--material",
         default="gold",
@@ -26,9 +26,13 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument(
         "--model",
         default="microfacet",
-        choices=MODELS,
-        help="model to evaluate (default: microfacet; `lamina models` lists them)",
+        help="model to evaluate, or several separated by commas, overlaid (default: microfacet; `lamina models`)",
     )
+    p.add_argument(
+        "--reference", type=int, default=None, help="overlay the reference with this many paths per direction (±2 SE)"
+    )
+    p.add_argument("--plane", default="incidence", choices=("incidence", "perpendicular"), help="plane of wo")
+    p.add_argument("--format", default="png", choices=("png", "pdf", "svg"), help="file format (default: png)")
     p.add_argument("--out", default="out", help="output directory (default: out)")
     p.add_argument(
         "--thetas",
@@ -63,11 +67,17 @@ def _plot(args) -> str:
         thetas = [float(t) for t in args.thetas.split(",")]
     except ValueError:
         raise ValueError(f"--thetas must be comma-separated numbers in degrees, got {args.thetas!r}") from None
+    models = args.model.split(",")
+    unknown = [m for m in models if m not in MODELS]
+    if unknown:
+        raise ValueError(f"--model must be among {list(MODELS)}, got {unknown[0]!r}")
     stack = materials.preset(args.material)
-    fig = brdf_slices(stack, thetas, model=args.model, title=f"lamina {args.model}: {args.material}")
+    fig = brdf_slices(
+        stack, thetas, model=models, title=f"lamina: {args.material}", plane=args.plane, reference=args.reference
+    )
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
-    path = out / f"{args.material}_{args.model}_slices.png"
+    path = out / f"{args.material}_{'+'.join(models)}_slices.{args.format}"
     fig.savefig(path, dpi=130)
     return f"wrote {path}"
 

@@ -53,46 +53,57 @@ def preset(name: str) -> Stack:
         raise ValueError(f"name must be one of {sorted(PRESETS)}, got {name!r}") from None
 
 
-PRESETS = {
-    "gold": lambda: Stack([metal("Au", 0.15)]),
-    "silver": lambda: Stack([metal("Ag", 0.1)]),
-    "copper": lambda: Stack([metal("Cu", 0.2)]),
-    "aluminium": lambda: Stack([metal("Al", 0.25)]),
-    "chromium": lambda: Stack([metal("Cr", 0.1)]),
-    "brushed-aluminium": lambda: Stack([metal("Al", (0.05, 0.35), angle=np.pi / 4)]),
-    "red-plastic": lambda: plastic(),
-    "clay": lambda: Stack([Diffuse((0.55, 0.35, 0.25), roughness=0.6)]),
-    # Layered: evaluate with model="belcour", "steinberg" or "weidlich_wilkie".
-    "coated-copper": lambda: Stack([Dielectric(1.5, 0.2), metal("Cu", 0.35)]),
-    "car-paint": lambda: car_paint(),
-    "varnished-wood": lambda: Stack(
-        [Dielectric(1.5, 0.05, thickness=1.0, sigma_a=(0.1, 0.35, 0.9)), Diffuse((0.45, 0.25, 0.12), roughness=0.3)]
-    ),
-}
+class _Factories(dict):
+    """Material factories by name; prints as the names it holds."""
+
+    def __repr__(self) -> str:
+        return f"{type(self).__name__.lstrip('_')}({list(self)})"
+
+
+PRESETS = _Factories(
+    {
+        "gold": lambda: Stack([metal("Au", 0.15)]),
+        "silver": lambda: Stack([metal("Ag", 0.1)]),
+        "copper": lambda: Stack([metal("Cu", 0.2)]),
+        "aluminium": lambda: Stack([metal("Al", 0.25)]),
+        "chromium": lambda: Stack([metal("Cr", 0.1)]),
+        "brushed-aluminium": lambda: Stack([metal("Al", (0.05, 0.35), angle=np.pi / 4)]),
+        "red-plastic": lambda: plastic(),
+        "clay": lambda: Stack([Diffuse((0.55, 0.35, 0.25), roughness=0.6)]),
+        # Layered: evaluate with model="belcour", "steinberg" or "weidlich_wilkie".
+        "coated-copper": lambda: Stack([Dielectric(1.5, 0.2), metal("Cu", 0.35)]),
+        "car-paint": lambda: car_paint(),
+        "varnished-wood": lambda: Stack(
+            [Dielectric(1.5, 0.05, thickness=1.0, sigma_a=(0.1, 0.35, 0.9)), Diffuse((0.45, 0.25, 0.12), roughness=0.3)]
+        ),
+    }
+)
 
 #: The material suite used for validation and benchmarks: layered stacks covering coats over metals, absorbing and
 #: scattering slabs, anisotropy with rotated tangent frames and three layers. Thicknesses in arbitrary units, with
 #: sigma_a / sigma_s in their inverse.
-SUITE = {
-    "gold-clearcoat": lambda: Stack([Dielectric(1.5), metal("Au", 0.15)]),
-    "frosted-metal": lambda: Stack([Dielectric(1.5, 0.35), metal("Al", 0.02)]),
-    "rough-coat-rough-copper": lambda: Stack([Dielectric(1.5, 0.2), metal("Cu", 0.35)]),
-    "varnished-diffuse": lambda: Stack(
-        [Dielectric(1.5, thickness=1.0, sigma_a=(0.1, 0.35, 0.9)), Diffuse((0.6, 0.35, 0.15))]
-    ),
-    "anisotropic-coat-metal": lambda: Stack(
-        [Dielectric(1.5, (0.1, 0.4), angle=0.5), metal("Al", (0.35, 0.08), angle=-0.4)]
-    ),
-    "thick-absorbing-slab": lambda: Stack(
-        [Dielectric(1.5, 0.1, thickness=5.0, sigma_a=(0.05, 0.15, 0.4)), Diffuse(0.8)]
-    ),
-    "three-layer": lambda: Stack(
-        [Dielectric(1.3, 0.1), Dielectric(1.6, 0.25, thickness=0.5, sigma_a=0.2), metal("Cu", 0.2)]
-    ),
-    "scattering-slab": lambda: Stack(
-        [Dielectric(1.4, thickness=1.0, sigma_a=0.05, sigma_s=2.0, g=0.7), Diffuse((0.5, 0.4, 0.3))]
-    ),
-}
+SUITE = _Factories(
+    {
+        "gold-clearcoat": lambda: Stack([Dielectric(1.5), metal("Au", 0.15)]),
+        "frosted-metal": lambda: Stack([Dielectric(1.5, 0.35), metal("Al", 0.02)]),
+        "rough-coat-rough-copper": lambda: Stack([Dielectric(1.5, 0.2), metal("Cu", 0.35)]),
+        "varnished-diffuse": lambda: Stack(
+            [Dielectric(1.5, thickness=1.0, sigma_a=(0.1, 0.35, 0.9)), Diffuse((0.6, 0.35, 0.15))]
+        ),
+        "anisotropic-coat-metal": lambda: Stack(
+            [Dielectric(1.5, (0.1, 0.4), angle=0.5), metal("Al", (0.35, 0.08), angle=-0.4)]
+        ),
+        "thick-absorbing-slab": lambda: Stack(
+            [Dielectric(1.5, 0.1, thickness=5.0, sigma_a=(0.05, 0.15, 0.4)), Diffuse(0.8)]
+        ),
+        "three-layer": lambda: Stack(
+            [Dielectric(1.3, 0.1), Dielectric(1.6, 0.25, thickness=0.5, sigma_a=0.2), metal("Cu", 0.2)]
+        ),
+        "scattering-slab": lambda: Stack(
+            [Dielectric(1.4, thickness=1.0, sigma_a=0.05, sigma_s=2.0, g=0.7), Diffuse((0.5, 0.4, 0.3))]
+        ),
+    }
+)
 
 
 def car_paint(
@@ -240,6 +251,127 @@ def patina(extent: float = 0.5, transition: float = 0.1, **params) -> Patina:
     return Patina(extent, transition, **params)
 
 
+#: Material classes of `population` and their shares.
+POPULATION_CLASSES = {
+    "metal": 0.10,
+    "coated-metal": 0.25,
+    "plastic": 0.20,
+    "varnish": 0.15,
+    "car-paint": 0.15,
+    "patina": 0.15,
+}
+
+
+def _log_uniform(rng, lo: float, hi: float) -> float:
+    return float(np.exp(rng.uniform(np.log(lo), np.log(hi))))
+
+
+def _random_roughness(rng, lo: float, hi: float, smooth: float = 0.0, anisotropic: float = 0.0):
+    """0 with probability `smooth`, else log-uniform in [lo, hi], anisotropic (alpha_y = alpha_x · U[0.15, 1],
+    axes swapped half the time) with probability `anisotropic`."""
+    if rng.uniform() < smooth:
+        return 0.0
+    a = _log_uniform(rng, lo, hi)
+    if rng.uniform() >= anisotropic:
+        return a
+    pair = (a, max(a * rng.uniform(0.15, 1.0), 1e-3))
+    return pair if rng.uniform() < 0.5 else pair[::-1]
+
+
+def random_stack(rng: np.random.Generator) -> tuple[str, Stack]:
+    """One stack drawn from `population`'s distribution: (class name, stack)."""
+    names = list(POPULATION_CLASSES)
+    kind = names[rng.choice(len(names), p=list(POPULATION_CLASSES.values()))]
+    angle = float(rng.uniform(0.0, np.pi))
+    if kind == "metal":
+        return kind, Stack(
+            [metal(str(rng.choice(["Au", "Ag", "Cu", "Al", "Cr"])), _random_roughness(rng, 0.03, 0.6, 0, 0.3), angle)]
+        )
+    if kind == "coated-metal":
+        thick = rng.uniform() < 0.3
+        coat = Dielectric(
+            float(rng.uniform(1.3, 1.8)),
+            _random_roughness(rng, 0.02, 0.5, smooth=0.4, anisotropic=0.25),
+            angle,
+            thickness=float(rng.uniform(0.1, 2.0)) if thick else 0.0,
+            sigma_a=tuple(rng.uniform(0.0, 1.0, 3).tolist()) if thick else 0.0,
+        )
+        base = metal(
+            str(rng.choice(["Au", "Ag", "Cu", "Al", "Cr"])), _random_roughness(rng, 0.03, 0.6, 0, 0.25), -angle
+        )
+        return kind, Stack([coat, base])
+    if kind == "plastic":
+        coat = Dielectric(float(rng.uniform(1.3, 1.7)), _random_roughness(rng, 0.02, 0.5, smooth=0.4))
+        base = Diffuse(
+            tuple(rng.uniform(0.05, 0.9, 3).tolist()), float(rng.uniform(0, 0.6)) if rng.uniform() < 0.5 else 0.0
+        )
+        return kind, Stack([coat, base])
+    if kind == "varnish":
+        tint = np.array([0.1, 0.35, 0.9]) * rng.uniform(0.0, 1.5)
+        coat = Dielectric(
+            float(rng.uniform(1.4, 1.6)),
+            _random_roughness(rng, 0.02, 0.2, smooth=0.5),
+            thickness=float(rng.uniform(0.2, 3.0)),
+            sigma_a=tuple(tint.tolist()),
+        )
+        wood = np.array([0.6, 0.35, 0.15]) * rng.uniform(0.3, 1.4)
+        return kind, Stack([coat, Diffuse(tuple(np.clip(wood, 0.0, 1.0).tolist()))])
+    if kind == "car-paint":
+        n, k = ELEK2010["Cr"]
+        layers = [
+            Dielectric(
+                float(rng.uniform(1.45, 1.55)),
+                _log_uniform(rng, 0.01, 0.08),
+                thickness=float(rng.uniform(0.5, 2.0)),
+                sigma_a=tuple(rng.uniform(0.0, 1.5, 3).tolist()),
+            ),
+            Conductor(n, k, float(rng.uniform(0.15, 0.5))),
+        ]
+        if rng.uniform() < 0.3:  # a clear coat over the tinted base coat
+            layers.insert(0, Dielectric(float(rng.uniform(1.45, 1.55)), _random_roughness(rng, 0.01, 0.1, smooth=0.5)))
+        return kind, Stack(layers)
+    n_cu, k_cu = ELEK2010["Cu"]
+    n_p, k_p = ELEK2010["Cu2O"]
+    return kind, Stack(
+        [
+            Dielectric(
+                n_p,
+                float(rng.uniform(0.1, 0.5)),
+                thickness=float(rng.uniform(0.05, 1.0)),
+                sigma_a=tuple((4 * np.pi * np.asarray(k_p) / _RGB_UM).tolist()),
+                sigma_s=float(rng.uniform(0.0, 4.0)) if rng.uniform() < 0.6 else 0.0,
+            ),
+            Conductor(n_cu, k_cu, float(rng.uniform(0.05, 0.4))),
+        ]
+    )
+
+
+def population(n: int = 200, seed: int = 1) -> list[tuple[str, Stack]]:
+    """`n` random stacks of real-material ranges, deterministic for `seed`: (class name, stack) pairs. The classes
+    and their shares are POPULATION_CLASSES; within a class, every parameter is drawn independently:
+
+    - metal: a bare measured conductor (Au, Ag, Cu, Al, Cr), alpha log-uniform in [0.03, 0.6], anisotropic (ratio
+      U[0.15, 1], tangent angle U[0, π)) with probability 0.3;
+    - coated-metal: a clear coat (IOR U[1.3, 1.8]; smooth with probability 0.4, else alpha log-uniform in
+      [0.02, 0.5], anisotropic with probability 0.25; with probability 0.3 a slab of thickness U[0.1, 2] absorbing
+      σa ~ U[0, 1]³) over a measured metal as above (anisotropic with probability 0.25);
+    - plastic: a coat (IOR U[1.3, 1.7], smooth with probability 0.4, else alpha log-uniform in [0.02, 0.5]) over a
+      diffuse base of albedo U[0.05, 0.9]³, Oren–Nayar σ U[0, 0.6] half the time;
+    - varnish: a wood varnish (IOR U[1.4, 1.6], smooth half the time, else alpha log-uniform in [0.02, 0.2];
+      thickness U[0.2, 3]; σa = (0.1, 0.35, 0.9)·U[0, 1.5]) over a wood-coloured diffuse base
+      (0.6, 0.35, 0.15)·U[0.3, 1.4];
+    - car-paint: Elek's tinted coat (IOR U[1.45, 1.55], alpha log-uniform in [0.01, 0.08], thickness U[0.5, 2],
+      σa ~ U[0, 1.5]³) over chromium flakes (ELEK2010, alpha U[0.15, 0.5]); with probability 0.3 a clear coat on top;
+    - patina: Elek's cuprite (ELEK2010; alpha U[0.1, 0.5], thickness U[0.05, 1] µm, σa = 4πκ/λ, σs U[0, 4] per µm
+      with probability 0.6) over copper (alpha U[0.05, 0.4]).
+
+    The chart (make chart) uses seed 1; `lamina.choose` is built from seed 1 and validated on seed 2."""
+    if isinstance(n, bool) or not isinstance(n, Integral) or n < 1:
+        raise ValueError(f"n must be a positive integer, got {n!r}")
+    rng = np.random.default_rng([seed, 0x1A317A])
+    return [random_stack(rng) for _ in range(n)]
+
+
 def suite(name: str) -> Stack:
     """A material of the validation suite (see SUITE)."""
     if not isinstance(name, str):
@@ -251,6 +383,9 @@ def suite(name: str) -> Stack:
 
 
 __all__ = [
+    "population",
+    "random_stack",
+    "POPULATION_CLASSES",
     "SUITE",
     "suite",
     "car_paint",

@@ -9,9 +9,9 @@ from pathlib import Path
 
 import numpy as np
 
-from . import _lamina, materials
+from . import _lamina, materials, oat
 from . import gpu as _gpu
-from .renderer import relative_error, render, save_image, sky, to_srgb8
+from .renderer import DirectionalLight, relative_error, render, save_image, sky, to_srgb8
 from .stack import Stack
 
 #: The analytic models the gallery compares (the layered ones; microfacet takes single interfaces only).
@@ -166,10 +166,47 @@ def features_figure(size: int = 256, spp: int = 32, log=print):
     return fig
 
 
+def gooey_figure(size: int = 256, texture: int = 512, log=print):
+    """Oat 2006's gooey ball (lamina.oat.organic_textures: a translucent membrane over veins, 3 texels deep) in the
+    three variants, with the two optimizations' differences from the full technique and their render times."""
+    import matplotlib.pyplot as plt
+
+    m = oat.Material(**oat.organic_textures(texture, seed=1), thickness=3.0)
+    light = [DirectionalLight((-0.5, 0.6, 0.8), (3.0, 3.0, 3.0))]
+    images, seconds = [], []
+    for v in oat.VARIANTS:
+        start = time.perf_counter()
+        images.append(render(material=m.with_variant(v), width=size, height=size, lights=light, progress=False))
+        seconds.append(time.perf_counter() - start)
+    fig, axes = plt.subplots(2, 3, figsize=(12, 8.4), constrained_layout=True)
+    scale = images[0].mean()
+    for k, (v, img, sec) in enumerate(zip(oat.VARIANTS, images, seconds)):
+        axes[0, k].imshow(to_srgb8(img))
+        axes[0, k].set_title(f'variant="{v}": {1e3 * sec:.0f} ms ({size}², CPU)', fontsize=10)
+        diff = np.abs(img - images[0]).mean(-1) / scale
+        if k == 0:
+            continue
+        im = axes[1, k].imshow(diff, cmap="magma", vmin=0.0, vmax=0.5)
+        axes[1, k].set_title(f"|{v} − full| / mean(full): mean {diff.mean():.3f}", fontsize=9)
+        log(f"gooey {v}: {1e3 * sec:.0f} ms, mean difference from full {diff.mean():.3f}")
+    axes[1, 0].imshow(to_srgb8(oat.light_map(m, light)))
+    axes[1, 0].set_title("full's texture-space light map (u →, v ↓)", fontsize=9)
+    fig.colorbar(im, ax=axes[1, 1:], shrink=0.8)
+    for ax in axes.ravel():
+        ax.axis("off")
+    fig.suptitle(
+        "Oat 2006's gooey layers: a translucent membrane over veins. full: parallax and a blurred texture-space light "
+        "map;\nnormal_filtered: the Poisson disc over the normal map; vertex_normal: inner layer lit by the vertex "
+        "normal, unfiltered",
+        fontsize=10,
+    )
+    return fig
+
+
 def write_gallery(out="out", *, size: int = 128, spp: int = 32, reference_spp: int = 64, docs=None, log=print) -> Path:
     """Renders the gallery and writes `out`/gallery.png, `out`/features.png (weidlich_wilkie's textured car paint and
-    patina), one EXR per material and model (`out`/exr/), and copies of the PNGs into the folder `docs` if given.
-    Returns the gallery PNG's path."""
+    patina), `out`/gooey.png (Oat 2006 in its three variants), one EXR per material and model (`out`/exr/), and
+    copies of the PNGs into the folder `docs` if given. Returns the gallery PNG's path."""
     out = Path(out)
     (out / "exr").mkdir(parents=True, exist_ok=True)
     start = time.perf_counter()
@@ -186,11 +223,17 @@ def write_gallery(out="out", *, size: int = 128, spp: int = 32, reference_spp: i
     fig.savefig(path, dpi=110)
     features = features_figure(size=2 * size, spp=spp, log=log)
     features.savefig(out / "features.png", dpi=110)
+    gooey = gooey_figure(size=2 * size, log=log)
+    gooey.savefig(out / "gooey.png", dpi=100)
     if docs is not None:
         Path(docs).mkdir(parents=True, exist_ok=True)
         fig.savefig(Path(docs) / "gallery.png", dpi=110)
         features.savefig(Path(docs) / "features.png", dpi=110)
-    log(f"wrote {path}, {out / 'features.png'} and {len(result['names']) * (1 + len(result['models']))} EXR images")
+        gooey.savefig(Path(docs) / "gooey.png", dpi=100)
+    log(
+        f"wrote {path}, {out / 'features.png'}, {out / 'gooey.png'} and "
+        f"{len(result['names']) * (1 + len(result['models']))} EXR images"
+    )
     log(f"total {time.perf_counter() - start:.1f} s")
     return path
 

@@ -11,7 +11,7 @@ from pathlib import Path
 import numpy as np
 
 from . import _lamina, optics
-from ._reference import CHUNK, WORK_PER_CALL, f_estimate, tally
+from ._reference import CHUNK, SUITE_THETAS, WORK_PER_CALL, f_estimate, suite_directions, tally
 from .layers import Dielectric
 from .materials import suite
 
@@ -26,23 +26,9 @@ __all__ = [
     "suite_directions",
     "suite_reference",
     "suite_reference_albedo",
+    "reference_albedo",
     "tally",
 ]
-
-
-#: Incident zenith angles (degrees) of the suite's reference grid.
-SUITE_THETAS = (0.0, 30.0, 60.0, 80.0, 87.0)
-
-
-def suite_directions() -> tuple[np.ndarray, np.ndarray]:
-    """The fixed grid of the suite's reference values: wi (5, 1, 3) at SUITE_THETAS in the x–z plane (φ = 0) and
-    wo (1, 30, 3) at θo ∈ {0, 20, 40, 60, 75, 85}° x φo ∈ {0, 45, 90, 135, 180}° (φo = 180° holds the mirror
-    direction); they broadcast to (5, 30, 3)."""
-    ti = np.radians(SUITE_THETAS)
-    wi = np.stack([np.sin(ti), np.zeros_like(ti), np.cos(ti)], -1)[:, None, :]
-    to, po = np.meshgrid(np.radians([0, 20, 40, 60, 75, 85]), np.radians([0, 45, 90, 135, 180]), indexing="ij")
-    wo = np.stack([np.sin(to) * np.cos(po), np.sin(to) * np.sin(po), np.cos(to)], -1).reshape(1, -1, 3)
-    return wi, wo
 
 
 def cache_dir() -> Path:
@@ -97,15 +83,28 @@ def suite_reference(name: str, samples: int = 100_000, seed: int = 0, progress=N
     return wi, wo, f, se
 
 
-def suite_reference_albedo(name: str, samples: int = 200_000, seed: int = 0):
-    """Brute-force reference albedo of suite material `name` at SUITE_THETAS (light in the x–z plane), with a smooth
-    top's specular delta removed (the analytic models do not return Dirac lobes): (wi (5, 3), albedo (5, channels),
-    stderr (5, channels))."""
-    t = np.radians(SUITE_THETAS)
+def reference_albedo(stack, samples: int = 200_000, seed: int = 0, thetas=SUITE_THETAS) -> tuple:
+    """Brute-force reference albedo of `stack` at incident angles `thetas` (degrees; light in the x–z plane),
+    cached, with a smooth top's specular delta removed (the analytic models do not return Dirac lobes):
+    (albedo (len(thetas), channels), stderr (len(thetas), channels))."""
+    t = np.radians(thetas)
     wi = np.stack([np.sin(t), np.zeros_like(t), np.cos(t)], -1)
-    stack = suite(name)
-    albedo, se = stack.albedo(wi, "reference", samples=samples, seed=seed, progress=False)
+    path = cache_dir() / f"albedo-{cache_key(stack, wi, wi, samples, seed)}.npz"
+    if path.exists():
+        with np.load(path) as z:
+            albedo, se = z["a"], z["se"]
+    else:
+        albedo, se = stack.albedo(wi, "reference", samples=samples, seed=seed, progress=False)
+        path.parent.mkdir(parents=True, exist_ok=True)
+        np.savez(path.with_suffix(".tmp.npz"), a=albedo, se=se)
+        path.with_suffix(".tmp.npz").replace(path)
     top = stack.layers[0]
-    if isinstance(top, Dielectric) and top.roughness == 0.0:
-        albedo = albedo - optics.fresnel_dielectric(wi[:, 2], float(np.mean(top.ior)))[:, None]
-    return wi, albedo, se
+    if isinstance(top, Dielectric) and max(np.ravel(top.roughness)) == 0.0:
+        albedo = albedo - optics.fresnel_dielectric(wi[:, 2], float(np.mean(top.ior)) / stack.ext_ior)[:, None]
+    return albedo, se
+
+
+def suite_reference_albedo(name: str, samples: int = 200_000, seed: int = 0):
+    """reference_albedo of suite material `name`: (wi (5, 3), albedo (5, channels), stderr (5, channels))."""
+    t = np.radians(SUITE_THETAS)
+    return (np.stack([np.sin(t), np.zeros_like(t), np.cos(t)], -1), *reference_albedo(suite(name), samples, seed))

@@ -18,6 +18,7 @@ from . import _lamina
 from . import gpu as _gpu
 from .catalogue import model as _model
 from .materials import Patina
+from .oat import Material as OatMaterial
 from .stack import Stack
 
 Vec3 = tuple[float, float, float]
@@ -215,10 +216,62 @@ def _progress(total: int, progress):
     return tqdm(total=total, unit="sample", unit_scale=True, desc="lamina render")
 
 
+def _scene(shape, width: int, height: int, camera):
+    """Checked shape spec, size and camera (origin, target, fov in radians) or None."""
+    for name, v in (("width", width), ("height", height)):
+        if not isinstance(v, Integral) or isinstance(v, bool):
+            raise TypeError(f"{name} must be an integer, got {v!r}")
+        if not 1 <= v <= 16384:
+            raise ValueError(f"{name} must be in [1, 16384], got {v}")
+    if isinstance(shape, Mesh):
+        shape = shape._spec()
+    elif not isinstance(shape, str) or shape not in ("sphere", "plane"):
+        raise ValueError(f"shape must be 'sphere', 'plane' or a lamina.Mesh, got {shape!r}")
+    if camera is not None:
+        try:
+            origin, target, fov = camera
+        except (TypeError, ValueError):
+            raise TypeError("camera must be None or (origin, target, fov_degrees)") from None
+        camera = (_vec("camera origin", origin), _vec("camera target", target), np.radians(_number("fov", fov, 1, 179)))
+        if np.allclose(camera[0], camera[1]):
+            raise ValueError("camera origin and target must differ")
+    return shape, camera
+
+
+def _render_oat(material, shape, width, height, lights, device, camera, progress) -> np.ndarray:
+    """lamina.render for Oat materials: each one prepared (light map) once, then rendered in bands of rows."""
+    single = isinstance(material, OatMaterial)
+    materials = [material] if single else list(material)
+    for i, m in enumerate(materials):
+        if not isinstance(m, OatMaterial):
+            raise TypeError(f"material[{i}] must be a lamina.oat.Material, got {type(m).__name__}")
+    if device == "gpu":
+        raise ValueError("device='gpu': Oat materials render on the CPU only for now; use device='cpu' or 'auto'")
+    shape, camera = _scene(shape, width, height, camera)
+    lights = [DirectionalLight((0.5, 0.6, 1.0), (3.0, 3.0, 3.0))] if lights is None else list(lights)
+    for i, light in enumerate(lights):
+        if not isinstance(light, (DirectionalLight, PointLight)):
+            raise TypeError(f"lights[{i}]: Oat materials take DirectionalLight and PointLight, got {light!r}")
+    specs = [light._spec() for light in lights]
+    prepared = [m._prepared(shape, specs) for m in materials]
+    out = np.empty((len(materials), height, width, 3), dtype=np.float32)
+    band = max(1, 4096 // width)
+    bar = _progress(len(materials) * width * height, progress)
+    for first in range(0, height, band):
+        rows = min(band, height - first)
+        out[:, first : first + rows] = _lamina.render_oat(prepared, shape, camera, specs, width, height, first, rows)
+        if bar is not None:
+            bar.update(len(materials) * width * rows)
+    if bar is not None:
+        bar.close()
+    return out[0] if single else out
+
+
 def render(
-    stacks,
+    stacks=None,
     model: str = "microfacet",
     *,
+    material=None,
     shape: str = "sphere",
     width: int = 256,
     height: int = 256,
@@ -242,31 +295,26 @@ def render(
     textures over the surface's uv ((h, w) or (h, w, 3) arrays, or constants), e.g. flake_normal for car paint.
     device: "cpu"; "gpu" renders directional and point lights on the sphere or plane with the models that run on the
     GPU (lamina.gpu.models(), wgpu, float32, one dispatch per stack in one submission; other scenes raise
-    ValueError); "auto" takes a hardware GPU for such scenes, else the CPU."""
+    ValueError); "auto" takes a hardware GPU for such scenes, else the CPU.
+
+    material: instead of stacks, a lamina.oat.Material or a list of them (Oat 2006's gooey layers, lit by the
+    directional and point lights; CPU only for now)."""
     if device not in _gpu.DEVICES:
         raise ValueError(f"device must be one of {_gpu.DEVICES}, got {device!r}")
+    if material is not None:
+        if stacks is not None:
+            raise TypeError("render takes stacks or material=, not both")
+        return _render_oat(material, shape, width, height, lights, device, camera, progress)
     items, brought, single = _stacks(stacks)
     m = _model(model)
-    for name, v in (("width", width), ("height", height), ("spp", spp), ("seed", seed)):
+    for name, v in (("spp", spp), ("seed", seed)):
         if not isinstance(v, Integral) or isinstance(v, bool):
             raise TypeError(f"{name} must be an integer, got {v!r}")
-    for name, v, hi in (("width", width, 16384), ("height", height, 16384), ("spp", spp, 1 << 20)):
-        if not 1 <= v <= hi:
-            raise ValueError(f"{name} must be in [1, {hi}], got {v}")
+    if not 1 <= spp <= 1 << 20:
+        raise ValueError(f"spp must be in [1, {1 << 20}], got {spp}")
     if not 0 <= seed < 2**64:
         raise ValueError(f"seed must be in [0, 2**64), got {seed}")
-    if isinstance(shape, Mesh):
-        shape = shape._spec()
-    elif shape not in ("sphere", "plane"):
-        raise ValueError(f"shape must be 'sphere', 'plane' or a lamina.Mesh, got {shape!r}")
-    if camera is not None:
-        try:
-            origin, target, fov = camera
-        except (TypeError, ValueError):
-            raise TypeError("camera must be None or (origin, target, fov_degrees)") from None
-        camera = (_vec("camera origin", origin), _vec("camera target", target), np.radians(_number("fov", fov, 1, 179)))
-        if np.allclose(camera[0], camera[1]):
-            raise ValueError("camera origin and target must differ")
+    shape, camera = _scene(shape, width, height, camera)
     lights = [sky()] if lights is None else list(lights)
     env, specs = None, []
     for i, light in enumerate(lights):

@@ -3,8 +3,9 @@ the catalogue (lamina.models), the Monte Carlo reference, albedo and lobes. Conv
 
 from __future__ import annotations
 
+from dataclasses import replace
 from numbers import Integral, Real
-from typing import Sequence
+from typing import NamedTuple, Sequence
 
 import numpy as np
 
@@ -13,9 +14,19 @@ from . import gpu as _gpu
 from ._arrays import broadcast
 from .catalogue import model as _model
 from .catalogue import options_doc
+from .choose import choose
 from .layers import Conductor, Dielectric, Diffuse, Layer
 
 _LAYERS = (Dielectric, Conductor, Diffuse)
+
+
+class Simplified(NamedTuple):
+    """What `Stack.simplify` returns: the simpler stack, the relative L1 difference of f it introduces under the
+    model it was measured with, and a line per change made."""
+
+    stack: Stack
+    error: float
+    steps: tuple
 
 
 class Stack:
@@ -77,6 +88,7 @@ class Stack:
         samples: int = 10_000,
         seed: int = 0,
         device: str = "cpu",
+        tolerance: float | None = None,
         **kwargs,
     ) -> np.ndarray:
         """The BRDF f(wi, wo), not multiplied by cos θi.
@@ -92,12 +104,24 @@ class Stack:
         `samples` paths per pair. Tables are built on the first call and kept for the next calls with the same stack
         and options. Measured against the reference in docs/validation.md.
 
+        model="auto" evaluates with `lamina.choose(self, tolerance, wi)`: the cheapest model predicted within
+        `tolerance` (relative L1 lobe error, default 0.05) for this stack and these incident directions.
+
         device: "cpu" (default); "gpu" evaluates on the GPU (wgpu compute shaders, float32 output; lamina.gpu.models()
         lists the models it has; RuntimeError without an adapter); "auto" takes a hardware GPU when there is one and
         the model runs there, else the CPU.
 
         Models, their options (default, allowed values) and per-element inputs:
         """
+        if model == "auto":
+            c = choose(self, 0.05 if tolerance is None else tolerance, wi)
+            samples = c.options.get("samples", samples)
+            options = {k: v for k, v in c.options.items() if k != "samples"}
+            return self.eval(
+                wi, wo, c.model, wavelengths=wavelengths, samples=samples, seed=seed, device=device, **options, **kwargs
+            )
+        if tolerance is not None:
+            raise TypeError(f"tolerance applies to model='auto' only, got model={model!r}")
         m, options, inputs = self._split(model, kwargs)
         if m.name == "reference":
             return self.reference(wi, wo, wavelengths=wavelengths, samples=samples, seed=seed, **options)[0]
@@ -185,6 +209,77 @@ class Stack:
         )
         shape = wi.shape[:-1] + (mean.shape[-1],)
         return mean.reshape(shape), err.reshape(shape)
+
+    def simplify(self, tolerance: float = 0.01, model: str = "belcour") -> Simplified:
+        """A simpler stack that is equivalent within `tolerance`, when some layers do not matter:
+
+        - a smooth dielectric interface whose IOR equals the medium's above it does nothing (exact): it goes, and its
+          slab joins the one above when that one is empty or of the same medium (adjacent dielectrics of equal IOR
+          merge);
+        - a slab whose round-trip optical depth at normal incidence, 2 · thickness · max(σa + σs), is below
+          `tolerance` goes (it attenuates by at most that);
+        - over a conductor base, the interfaces whose Belcour lobes carry less than tolerance / 2 of the reflected
+          energy (at every θo ≤ 80°, in every channel) are pruned with everything beneath them, for a black
+          (Diffuse(0)) base.
+
+        The error it reports is measured: Σ|f − f_simplified| / Σ|f| under `model`, on the suite's direction grid
+        (lamina.reference.suite_directions) at θi ≤ 80°."""
+        if isinstance(tolerance, bool) or not isinstance(tolerance, Real) or not 0.0 < tolerance < 1.0:
+            raise ValueError(f"tolerance must be in (0, 1), got {tolerance!r}")
+        layers, steps = list(self.layers), []
+        for i, layer in enumerate(layers):
+            if isinstance(layer, Dielectric) and layer.thickness > 0.0:
+                tau = layer.thickness * float(np.max(np.add(layer.sigma_a, layer.sigma_s)))
+                if 2.0 * tau < tolerance:
+                    layers[i] = replace(layer, thickness=0.0, sigma_a=0.0, sigma_s=0.0, g=0.0)
+                    steps.append(f"layer {i}: slab of optical depth {tau:.3g} removed")
+        i = removed = 0
+        while i < len(layers):
+            layer, above = layers[i], (layers[i - 1] if i else None)
+            outside = above._resolve(None)["ior"] if above is not None else self.ext_ior
+            medium = lambda x: (x.sigma_a, x.sigma_s, x.g)  # noqa: E731
+            if (
+                isinstance(layer, Dielectric)
+                and np.all(np.ravel(layer.roughness) == 0.0)
+                and isinstance(above, (Dielectric, type(None)))
+                and np.allclose(layer._resolve(None)["ior"], outside, rtol=1e-12, atol=0.0)
+                and (
+                    layer.thickness == 0.0
+                    or (above is not None and (above.thickness == 0.0 or medium(above) == medium(layer)))
+                )
+            ):
+                if layer.thickness > 0.0:
+                    layers[i - 1] = replace(
+                        above,
+                        thickness=above.thickness + layer.thickness,
+                        sigma_a=layer.sigma_a,
+                        sigma_s=layer.sigma_s,
+                        g=layer.g,
+                    )
+                del layers[i]
+                steps.append(f"layer {i + removed}: index-matched smooth interface (IOR {layer.ior}) removed")
+                removed += 1
+                continue
+            i += 1
+        if isinstance(layers[-1], Conductor) and len(layers) > 1:
+            t = np.radians([0.0, 20.0, 40.0, 60.0, 80.0])
+            wo = np.stack([np.sin(t), np.zeros_like(t), np.cos(t)], -1)
+            energy = Stack(layers, self.ext_ior).lobes(wo)["energy"]  # (5, L, channels)
+            share = energy / np.maximum(energy.sum(axis=1, keepdims=True), 1e-300)
+            below = np.flip(np.cumsum(np.flip(share, axis=1), axis=1), axis=1).max(axis=(0, 2))  # share of lobes k..L
+            keep = next((k for k in range(1, len(layers)) if below[k] < tolerance / 2), len(layers))
+            if keep < len(layers):
+                steps.append(
+                    f"layers {keep}..{len(layers) - 1}: lobes with {below[keep]:.3g} of the energy pruned "
+                    "for a black base"
+                )
+                layers = layers[:keep] + [Diffuse(0.0)]
+        simple = Stack(layers, self.ext_ior) if steps else self
+        wi, wo = _reference.suite_directions()
+        wi = wi[np.array([0, 1, 2, 3])]
+        f, g = self.eval(wi, wo, model), simple.eval(wi, wo, model)
+        error = float(np.abs(f - g).sum() / max(np.abs(f).sum(), 1e-300))
+        return Simplified(simple, error, tuple(steps))
 
     def lobes(self, wo, model: str = "belcour", *, wavelengths=None) -> dict:
         """The lobes a statistical model builds for viewing direction(s) wo (..., 3), one GGX lobe per interface

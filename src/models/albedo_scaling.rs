@@ -138,7 +138,7 @@ impl Prepared {
                 *w *= self.scale(i, slab, wi, wo, c);
             }
         }
-        if let Some(SpLayer::Diffuse { albedo, sigma }) = self.layers.last() {
+        if let Some(SpLayer::Diffuse { albedo, sigma, .. }) = self.layers.last() {
             let shape = diffuse::oren_nayar_shape(*sigma, wi, wo);
             for (c, o) in out.iter_mut().enumerate() {
                 *o += weight[c] * albedo[c] * shape;

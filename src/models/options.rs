@@ -57,6 +57,8 @@ pub struct Options {
     pub clamp_roughness: bool,
     /// Single-pass models: the radiance compression 1/η² through each dielectric interface.
     pub eta2: bool,
+    /// Single-pass models: the geometric series of inter-reflections between a diffuse base and the coat above it.
+    pub interreflection: bool,
     /// Elek's patina (with the per-element input `mask`): smoothstep centre and half-width, and the tarnish of the
     /// base under the patina per channel.
     pub extent: f64,
@@ -81,6 +83,7 @@ impl Default for Options {
             elek_precomputed: false,
             clamp_roughness: true,
             eta2: true,
+            interreflection: false,
             extent: 0.5,
             transition: 0.1,
             tint: vec![1.0],
@@ -127,6 +130,11 @@ pub const CLAMP_ROUGHNESS: OptionSpec = flag(
 );
 pub const ETA2: OptionSpec =
     flag("eta2", true, "radiance compression 1/η² through each coat (lamina's addition); False: published form");
+pub const INTERREFLECTION: OptionSpec = flag(
+    "interreflection",
+    false,
+    "lamina's correction: inter-reflections between a diffuse base and the coat above, 1/(1 − ρ r) in closed form",
+);
 
 /// Parses an option's value against its kind: a string of the choices, a bool, or numbers in range.
 fn check(spec: &OptionSpec, value: &Value) -> Result<()> {
@@ -227,6 +235,7 @@ impl Options {
             "precomputed" => self.elek_precomputed = flag,
             "clamp_roughness" => self.clamp_roughness = flag,
             "eta2" => self.eta2 = flag,
+            "interreflection" => self.interreflection = flag,
             "scaling" => self.scaling_reciprocal = text() == "reciprocal",
             "roughening" => self.roughening = flag,
             "extent" => self.extent = number,

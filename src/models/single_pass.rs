@@ -7,9 +7,10 @@
 //!
 //! lamina's slabs map onto these models as: extinction σ = σa + σs for the Beer–Lambert factor k, and colour c =
 //! σs / σ (the single-scattering albedo) for the diffuse term of scattering slabs; the HG asymmetry g is not used.
-//! As in both publications, no inter-reflections between layers are modelled; the radiance compression 1/η² across
-//! each interface, which both publications omit, is lamina's option `eta2` (on by default: measured in
-//! docs/validation.md).
+//! As in both publications, no inter-reflections between layers are modelled by default; lamina's option
+//! `interreflection` adds those between a diffuse base and the coat above it (`add_interreflection`). The radiance
+//! compression 1/η² across each interface, which both publications omit, is lamina's option `eta2` (on by default:
+//! measured in docs/validation.md).
 
 use super::{Options, Proposal, BLOCK};
 use crate::optics::distribution::{Distribution, G2Form, Microfacet};
@@ -49,9 +50,19 @@ impl Interface {
 }
 
 pub enum SpLayer {
-    Dielectric { iface: Interface, thickness: f64, sigma_t: Vec<f64>, albedo: Vec<f64> },
+    Dielectric {
+        iface: Interface,
+        thickness: f64,
+        sigma_t: Vec<f64>,
+        albedo: Vec<f64>,
+    },
     Conductor(Interface),
-    Diffuse { albedo: Vec<f64>, sigma: f64 },
+    /// `gain` per channel: 1, or with the `interreflection` correction the geometric series 1/(1 − ρ r).
+    Diffuse {
+        albedo: Vec<f64>,
+        sigma: f64,
+        gain: Vec<f64>,
+    },
 }
 
 /// The stack as single-pass layers. With `clamp_roughness` each layer is at least as rough as the one above
@@ -84,11 +95,44 @@ pub fn layers(stack: &Stack, dist: Distribution, clamp_roughness: bool) -> Vec<S
             }
             Layer::Conductor { alpha, angle, .. } => out.push(SpLayer::Conductor(iface(*alpha, *angle, true))),
             Layer::Diffuse { albedo, roughness } => {
-                out.push(SpLayer::Diffuse { albedo: albedo.clone(), sigma: *roughness })
+                let gain = vec![1.0; albedo.len()];
+                out.push(SpLayer::Diffuse { albedo: albedo.clone(), sigma: *roughness, gain })
             }
         }
     }
     out
+}
+
+/// The inter-reflections between a diffuse base of albedo ρ and the coat above it, summed (lamina's correction):
+/// light leaving the base diffusely returns with probability r = F̄(1/η) T̄², F̄ the coat interface's hemispherical
+/// reflectance seen from inside (optics::fresnel::diffuse_reflectance) and T̄ = 2∫ e^{−σ d/μ} μ dμ the slab's
+/// cosine-averaged transmittance, so the base's light is multiplied by Σ (ρ r)^k = 1/(1 − ρ r). For a smooth,
+/// clear coat this is the exact smooth-coat-over-Lambert result (e.g. Mitsuba's `plastic`). Only the coat right
+/// above the base takes part; its roughness is ignored in r.
+pub fn add_interreflection(layers: &mut [SpLayer]) {
+    let n = layers.len();
+    if n < 2 {
+        return;
+    }
+    let (above, base) = layers.split_at_mut(n - 1);
+    let (SpLayer::Dielectric { iface, thickness, sigma_t, .. }, SpLayer::Diffuse { albedo, gain, .. }) =
+        (&above[n - 2], &mut base[0])
+    else {
+        return;
+    };
+    let nodes = crate::quadrature::gauss_legendre(32);
+    for (c, g) in gain.iter_mut().enumerate() {
+        let tau = sigma_t[c] * thickness;
+        let t_mean: f64 = nodes
+            .iter()
+            .map(|(x, w)| {
+                let mu = 0.5 * (x + 1.0);
+                0.5 * w * 2.0 * mu * if tau > 0.0 { (-tau / mu).exp() } else { 1.0 }
+            })
+            .sum();
+        let r = crate::optics::fresnel::diffuse_reflectance(1.0 / iface.eta[c]) * t_mean * t_mean;
+        *g = 1.0 / (1.0 - albedo[c] * r);
+    }
 }
 
 /// What a dielectric interface passes to the slab below for one channel: the light's transmission into the slab,
@@ -157,7 +201,10 @@ pub struct Walk {
 
 impl Walk {
     pub fn new(stack: &Stack, dist: Distribution, opts: &Options) -> Walk {
-        let layers = layers(stack, dist, opts.clamp_roughness);
+        let mut layers = layers(stack, dist, opts.clamp_roughness);
+        if opts.interreflection {
+            add_interreflection(&mut layers);
+        }
         let groups = channel_groups(&layers, stack.channels);
         Walk { layers, groups, g2: opts.g2, fresnel: opts.fresnel, eta2: opts.eta2 }
     }
@@ -268,11 +315,11 @@ impl Walk {
                         SpLayer::Conductor(iface) => {
                             self.add_lobes(model, iface, state, weight, group.clone(), &tint, out)
                         }
-                        SpLayer::Diffuse { albedo, sigma } => {
+                        SpLayer::Diffuse { albedo, sigma, gain } => {
                             for (r, (wi, wo, _)) in state.iter().enumerate().filter(|(_, s)| s.2) {
                                 let shape = diffuse::oren_nayar_shape(*sigma, *wi, *wo);
                                 for (c, g) in channels() {
-                                    out[r * k + c] += weight[r][g] * tint(c) * albedo[c] * shape;
+                                    out[r * k + c] += weight[r][g] * tint(c) * albedo[c] * gain[c] * shape;
                                 }
                             }
                         }
@@ -357,7 +404,9 @@ impl Walk {
                         (0..channels).for_each(|c| mirror[c] += f(c));
                     }
                 }
-                SpLayer::Diffuse { albedo, .. } => out.push((mean(&|c| weight[c] * albedo[c]), Proposal::Cosine)),
+                SpLayer::Diffuse { albedo, gain, .. } => {
+                    out.push((mean(&|c| weight[c] * albedo[c] * gain[c]), Proposal::Cosine))
+                }
             }
         }
         out

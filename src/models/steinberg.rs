@@ -15,10 +15,11 @@
 //! | `lut`             | string | `tabulated`         | `tabulated` integrals or the article's `fitted` closed forms |
 //! | `clamp_roughness` | bool   | `true`              | Elek's m₂ ≥ m₁; `false` for the published form              |
 //! | `eta2`            | bool   | `true`              | radiance compression 1/η²; `false` for the published form   |
+//! | `interreflection` | bool   | `false`             | lamina's correction: diffuse-base inter-reflections 1/(1 − ρ r) |
 //!
 //! The distribution is GGX (the tables are GGX). Sampling: the shared single-pass mixture (models/single_pass.rs).
 
-use super::options::{CLAMP_ROUGHNESS, ETA2, FRESNEL, G2};
+use super::options::{CLAMP_ROUGHNESS, ETA2, FRESNEL, G2, INTERREFLECTION};
 use super::single_pass::{refracted_up, Interface, Passage, SpLayer, Transport, Walk};
 use super::{InputSpec, Model, ModelInfo, OptionKind, OptionSpec, Options, Properties, Proposal};
 use crate::bsdf;
@@ -47,6 +48,7 @@ pub const INFO: ModelInfo = ModelInfo {
         },
         CLAMP_ROUGHNESS,
         ETA2,
+        INTERREFLECTION,
     ] as &[OptionSpec],
     inputs: &[] as &[InputSpec],
     properties: Properties { reciprocal: false, energy_conserving: false, anisotropic: true, spectral: true },

@@ -18,6 +18,7 @@
 //! | `precomputed`     | bool   | `false`    | Elek's precomputed Fresnel and Beckmann tables                       |
 //! | `clamp_roughness` | bool   | `true`     | Elek's m₂ ≥ m₁; `false` for the published form                       |
 //! | `eta2`            | bool   | `true`     | radiance compression 1/η²; `false` for the published form            |
+//! | `interreflection` | bool   | `false`    | lamina's correction: diffuse-base inter-reflections 1/(1 − ρ r)       |
 //! | `extent`          | float  | 0.5        | patina: smoothstep centre over the `mask` values                     |
 //! | `transition`      | float  | 0.1        | patina: smoothstep half-width                                        |
 //! | `tint`            | floats | 1          | patina: tarnish of the base under the patina, per channel            |
@@ -27,7 +28,7 @@
 //! (...) in [0, 1] covers the surface with the stack's top layer, the patina (`Patina`). Sampling: the shared
 //! single-pass mixture (models/single_pass.rs).
 
-use super::options::{OptionKind, CLAMP_ROUGHNESS, DISTRIBUTIONS, ETA2, FRESNEL, G2_FORMS};
+use super::options::{OptionKind, CLAMP_ROUGHNESS, DISTRIBUTIONS, ETA2, FRESNEL, G2_FORMS, INTERREFLECTION};
 use super::single_pass::{self, refracted_up, Interface, Passage, SpLayer, Transport, Walk};
 use super::{eval_rows, InputSpec, Inputs, Model, ModelInfo, OptionSpec, Options, Properties, Proposal, BLOCK};
 use crate::bsdf;
@@ -60,6 +61,7 @@ pub const INFO: ModelInfo = ModelInfo {
         },
         CLAMP_ROUGHNESS,
         ETA2,
+        INTERREFLECTION,
         OptionSpec {
             name: "extent",
             kind: OptionKind::Number { lo: 0.0, hi: 1.0, default: 0.5 },
@@ -299,7 +301,9 @@ impl Patina {
                     conductor: true,
                     table: Vec::new(),
                 }),
-                SpLayer::Diffuse { albedo, sigma } => SpLayer::Diffuse { albedo: albedo.clone(), sigma: *sigma },
+                SpLayer::Diffuse { albedo, sigma, gain } => {
+                    SpLayer::Diffuse { albedo: albedo.clone(), sigma: *sigma, gain: gain.clone() }
+                }
                 SpLayer::Dielectric { .. } => unreachable!("checked in Patina::new"),
             };
             let tint: Vec<f64> = self.tint.iter().map(|t| lerp(1.0, *t)).collect();

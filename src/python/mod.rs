@@ -7,6 +7,7 @@ mod api;
 mod arrays;
 #[cfg(feature = "gpu")]
 mod gpu;
+mod oat;
 mod primitives;
 mod reference;
 mod render;
@@ -51,6 +52,12 @@ fn _lamina(m: &Bound<'_, PyModule>) -> PyResult<()> {
         m.add_function(wrap_pyfunction!(gpu::render_gpu, m)?)?;
     }
     m.add_function(wrap_pyfunction!(render::render, m)?)?;
+    m.add_function(wrap_pyfunction!(oat::oat_parallax, m)?)?;
+    m.add_function(wrap_pyfunction!(oat::oat_poisson_filter, m)?)?;
+    m.add_function(wrap_pyfunction!(oat::oat_light_map, m)?)?;
+    m.add_function(wrap_pyfunction!(oat::render_oat, m)?)?;
+    m.add_function(wrap_pyfunction!(oat::oat_slab_exit, m)?)?;
+    m.add_class::<oat::OatMaterial>()?;
     m.add_function(wrap_pyfunction!(render::sky, m)?)?;
     m.add_function(wrap_pyfunction!(render::read_image, m)?)?;
     m.add_function(wrap_pyfunction!(render::read_obj, m)?)?;

@@ -14,7 +14,7 @@ use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyList, PyTuple};
 
 /// A texture from a C-contiguous float64 array (height, width, 1 or 3).
-fn texture(a: PyReadonlyArray3<'_, f64>) -> PyResult<Texture> {
+pub fn texture(a: PyReadonlyArray3<'_, f64>) -> PyResult<Texture> {
     let s = a.shape();
     Ok(Texture { height: s[0], width: s[1], comps: s[2], data: a.as_slice()?.to_vec() })
 }
@@ -26,7 +26,7 @@ fn rows<const K: usize>(a: &PyReadonlyArray2<'_, f64>) -> PyResult<Vec<[f64; K]>
 
 /// The shape: "sphere", "plane", or a mesh as (positions (n, 3), normals (n, 3), uvs (n, 2), tangents (n, 3) or
 /// None, triangles (m, 3) as float64 vertex indices), checked by python/lamina/renderer.py.
-fn shape(obj: &Bound<'_, PyAny>) -> PyResult<Shape> {
+pub fn shape(obj: &Bound<'_, PyAny>) -> PyResult<Shape> {
     if let Ok(name) = obj.extract::<String>() {
         return match name.as_str() {
             "sphere" => Ok(Shape::Sphere),
@@ -48,6 +48,14 @@ fn shape(obj: &Bound<'_, PyAny>) -> PyResult<Shape> {
     let triangles = rows::<3>(&tris)?.into_iter().map(|t| t.map(|i| i as usize)).collect();
     let tangents = t.as_ref().map(v3).transpose()?;
     Ok(Shape::Mesh(Mesh::new(v3(&p)?, v3(&n)?, rows::<2>(&uv)?, tangents, triangles)?))
+}
+
+/// The camera: None (orthographic) or (origin, target, vertical field of view in radians).
+pub fn camera(camera: Option<([f64; 3], [f64; 3], f64)>) -> Camera {
+    match camera {
+        None => Camera::Orthographic,
+        Some((o, t, fov)) => Camera::Perspective { origin: DVec3::from_array(o), target: DVec3::from_array(t), fov },
+    }
 }
 
 /// One light from (kind, a 3-vector, RGB): ("directional", towards the light, irradiance) or ("point", position,
@@ -84,11 +92,7 @@ pub fn render<'py>(
     first: usize,
     rows: usize,
 ) -> PyResult<Bound<'py, PyAny>> {
-    let shape = self::shape(shape)?;
-    let camera = match camera {
-        None => Camera::Orthographic,
-        Some((o, t, fov)) => Camera::Perspective { origin: DVec3::from_array(o), target: DVec3::from_array(t), fov },
-    };
+    let (shape, camera) = (self::shape(shape)?, self::camera(camera));
     let lights = lights.iter().map(|(k, v, rgb)| light(k, *v, *rgb)).collect::<PyResult<Vec<_>>>()?;
     let env = match env {
         None => None,

@@ -10,7 +10,8 @@ pub struct Mesh {
     positions: Vec<DVec3>,
     normals: Vec<DVec3>,
     uvs: Vec<[f64; 2]>,
-    tangents: Option<Vec<DVec3>>,
+    /// Given, or along +u from the uv layout (`uv_tangents`).
+    tangents: Vec<DVec3>,
     triangles: Vec<[usize; 3]>,
     nodes: Vec<Node>,
 }
@@ -45,6 +46,7 @@ impl Mesh {
         if let Some(t) = triangles.iter().find(|t| t.iter().any(|&i| i >= n)) {
             return value_error(format!("mesh: triangle {t:?} indexes a vertex outside [0, {n})"));
         }
+        let tangents = tangents.unwrap_or_else(|| uv_tangents(&positions, &uvs, &triangles));
         let mut mesh = Mesh { positions, normals, uvs, tangents, triangles, nodes: Vec::new() };
         let count = mesh.triangles.len();
         mesh.build(0, count);
@@ -106,19 +108,77 @@ impl Mesh {
                 }
             }
         }
-        let (s, k, b1, b2) = best?;
-        let [i0, i1, i2] = self.triangles[k];
-        let b0 = 1.0 - b1 - b2;
-        let lerp3 = |v: &[DVec3]| b0 * v[i0] + b1 * v[i1] + b2 * v[i2];
-        let mut n = lerp3(&self.normals).try_normalize()?;
-        if n.dot(d) > 0.0 {
-            n = -n; // seen from behind: shade the side the ray arrives at
+        let (_, k, b1, b2) = best?;
+        let mut hit = self.surface(k, [1.0 - b1 - b2, b1, b2])?;
+        if hit.n.dot(d) > 0.0 {
+            hit.n = -hit.n; // seen from behind: shade the side the ray arrives at
         }
-        let t = self.tangents.as_ref().map_or(DVec3::Y.cross(n), |t| lerp3(t));
-        let t = (t - t.dot(n) * n).try_normalize().unwrap_or_else(|| crate::sampling::orthonormal_basis(n).0);
-        let uv = std::array::from_fn(|c| b0 * self.uvs[i0][c] + b1 * self.uvs[i1][c] + b2 * self.uvs[i2][c]);
-        Some(Hit { p: o + s * d, n, t, uv })
+        Some(hit)
     }
+
+    /// The point of triangle k at barycentrics b: position, normal, tangent (Gram–Schmidt against the normal; ŷ × n
+    /// where the tangents vanish) and uv, interpolated.
+    fn surface(&self, k: usize, b: [f64; 3]) -> Option<Hit> {
+        let tri = self.triangles[k];
+        let lerp3 = |v: &[DVec3]| b[0] * v[tri[0]] + b[1] * v[tri[1]] + b[2] * v[tri[2]];
+        let n = lerp3(&self.normals).try_normalize()?;
+        let t = lerp3(&self.tangents);
+        let t = (t - t.dot(n) * n)
+            .try_normalize()
+            .or_else(|| DVec3::Y.cross(n).try_normalize())
+            .unwrap_or_else(|| crate::sampling::orthonormal_basis(n).0);
+        let uv = std::array::from_fn(|c| (0..3).map(|j| b[j] * self.uvs[tri[j]][c]).sum());
+        Some(Hit { p: lerp3(&self.positions), n, t, uv })
+    }
+
+    /// The mesh rasterized in uv space at width x height texels: the surface point at each texel centre
+    /// ((i + ½)/W, (j + ½)/H) that a triangle covers, None elsewhere (the light map of Oat 2006, step 2).
+    pub fn rasterize_uv(&self, width: usize, height: usize) -> Vec<Option<Hit>> {
+        let mut out: Vec<Option<Hit>> = vec![None; width * height];
+        for k in 0..self.triangles.len() {
+            let q =
+                self.triangles[k].map(|i| [self.uvs[i][0] * width as f64 - 0.5, self.uvs[i][1] * height as f64 - 0.5]);
+            let area = (q[1][0] - q[0][0]) * (q[2][1] - q[0][1]) - (q[2][0] - q[0][0]) * (q[1][1] - q[0][1]);
+            if area.abs() < 1e-12 {
+                continue;
+            }
+            let span = |c: usize, n: usize| {
+                let lo = q.iter().map(|p| p[c]).fold(f64::INFINITY, f64::min).ceil().max(0.0) as usize;
+                let hi = q.iter().map(|p| p[c]).fold(f64::NEG_INFINITY, f64::max).floor();
+                (lo, if hi < 0.0 { 0 } else { (hi as usize + 1).min(n) })
+            };
+            let ((i0, i1), (j0, j1)) = (span(0, width), span(1, height));
+            for j in j0..j1 {
+                for i in i0..i1 {
+                    let (x, y) = (i as f64, j as f64);
+                    let edge =
+                        |a: [f64; 2], b: [f64; 2]| ((b[0] - a[0]) * (y - a[1]) - (x - a[0]) * (b[1] - a[1])) / area;
+                    let b = [edge(q[1], q[2]), edge(q[2], q[0]), edge(q[0], q[1])];
+                    if b.iter().all(|&w| w >= -1e-9) {
+                        out[j * width + i] = self.surface(k, b).or(out[j * width + i]);
+                    }
+                }
+            }
+        }
+        out
+    }
+}
+
+/// Per-vertex tangents along +u from the uv layout (Lengyel 2001): each triangle's ∂p/∂u, summed over the
+/// triangles that share the vertex. Zero where the uv map is degenerate.
+fn uv_tangents(positions: &[DVec3], uvs: &[[f64; 2]], triangles: &[[usize; 3]]) -> Vec<DVec3> {
+    let mut t = vec![DVec3::ZERO; positions.len()];
+    for tri in triangles {
+        let (e1, e2) = (positions[tri[1]] - positions[tri[0]], positions[tri[2]] - positions[tri[0]]);
+        let (du1, dv1) = (uvs[tri[1]][0] - uvs[tri[0]][0], uvs[tri[1]][1] - uvs[tri[0]][1]);
+        let (du2, dv2) = (uvs[tri[2]][0] - uvs[tri[0]][0], uvs[tri[2]][1] - uvs[tri[0]][1]);
+        let det = du1 * dv2 - du2 * dv1;
+        if det.abs() > 1e-15 {
+            let dpdu = ((e1 * dv2 - e2 * dv1) / det).normalize_or_zero();
+            tri.iter().for_each(|&i| t[i] += dpdu);
+        }
+    }
+    t
 }
 
 /// Whether the ray o + s d (inv = 1/d) meets the box [lo, hi] at some s in (0, far) (Kay and Kajiya 1986).

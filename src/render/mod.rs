@@ -15,6 +15,7 @@
 pub mod env;
 pub mod io;
 pub mod mesh;
+pub mod oat;
 
 use crate::models::{eval_fan, sample, Model, MAX_INPUTS};
 use crate::optics::reflect;
@@ -52,7 +53,15 @@ pub enum Light {
     Point { position: DVec3, intensity: [f64; 3] },
 }
 
-/// Values of a per-element input over the surface, looked up by uv (nearest texel; row 0 at v = 0).
+/// How a lookup outside [0, 1)² reads a texture.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Border {
+    Clamp,
+    Wrap,
+}
+
+/// Values over the surface, looked up by uv: u along the columns, v along the rows (row 0 at v = 0), texel (i, j)
+/// centred at ((i + ½)/W, (j + ½)/H).
 pub struct Texture {
     pub width: usize,
     pub height: usize,
@@ -62,19 +71,46 @@ pub struct Texture {
 }
 
 impl Texture {
+    /// The nearest texel, wrapping (per-element inputs of the models).
     fn lookup(&self, uv: [f64; 2]) -> [f64; 3] {
         let i = ((uv[0].rem_euclid(1.0) * self.width as f64) as usize).min(self.width - 1);
         let j = ((uv[1].rem_euclid(1.0) * self.height as f64) as usize).min(self.height - 1);
+        self.texel(i, j)
+    }
+
+    fn texel(&self, i: usize, j: usize) -> [f64; 3] {
         let k = (j * self.width + i) * self.comps;
         std::array::from_fn(|c| if c < self.comps { self.data[k + c] } else { 0.0 })
+    }
+
+    /// Bilinear interpolation between the four nearest texel centres.
+    pub fn bilinear(&self, uv: [f64; 2], border: Border) -> [f64; 3] {
+        let index = |x: f64, n: usize| -> ([usize; 2], f64) {
+            let f = x * n as f64 - 0.5;
+            let (i, t) = (f.floor(), f - f.floor());
+            let at = |i: f64| match border {
+                Border::Clamp => i.clamp(0.0, (n - 1) as f64) as usize,
+                Border::Wrap => i.rem_euclid(n as f64) as usize % n,
+            };
+            ([at(i), at(i + 1.0)], t)
+        };
+        let ([i0, i1], tx) = index(uv[0], self.width);
+        let ([j0, j1], ty) = index(uv[1], self.height);
+        let (a, b, c, d) = (self.texel(i0, j0), self.texel(i1, j0), self.texel(i0, j1), self.texel(i1, j1));
+        std::array::from_fn(|k| (1.0 - ty) * ((1.0 - tx) * a[k] + tx * b[k]) + ty * ((1.0 - tx) * c[k] + tx * d[k]))
     }
 }
 
 /// How a material is shaded: a prepared model with its per-element inputs as textures (in the order of the
 /// model's inputs), or the reference (one walk setup per RGB channel).
 pub enum Shader {
-    Model { model: Arc<dyn Model>, textures: Vec<Option<Texture>> },
+    Model {
+        model: Arc<dyn Model>,
+        textures: Vec<Option<Texture>>,
+    },
     Reference(Vec<ChannelStack>),
+    /// Oat 2006's gooey layers (oat.rs): diffuse lights only.
+    Oat(Arc<oat::Prepared>),
 }
 
 pub struct Scene {
@@ -232,6 +268,7 @@ fn shade(scene: &Scene, shader: &Shader, hit: &Hit, wo_world: DVec3, rng: &mut R
                 (0..3).for_each(|c| radiance[c] += f[c] * s[c]);
             }
         }
+        Shader::Oat(prepared) => return oat::shade(prepared, &scene.lights, hit, wo_world),
         Shader::Reference(channels) => {
             let mut targets = Vec::new();
             for (l, e) in incident(&scene.lights, hit.p) {
