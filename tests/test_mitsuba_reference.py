@@ -19,7 +19,7 @@ import pytest
 from conftest import MI_RGB
 from mitsuba_walk import walk
 
-PATHS = 300_000
+PATHS = 200_000
 CU_ETA, CU_K = (np.asarray(x) for x in lamina.materials.measured_rgb("Cu"))
 #: (name, lamina stack, Mitsuba coat, Mitsuba base (relative to the coat's IOR), σa, thickness)
 CASES = [
