@@ -281,7 +281,15 @@ def test_ctrl_c_stops_a_long_evaluation():
         "s = lamina.materials.suite('three-layer'); s.eval(w[:10], w[:10], 'steinberg')\n"
         "print('ready', flush=True); s.eval(w, w, 'steinberg')\n"
     )
-    p = subprocess.Popen([sys.executable, "-c", code], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    # The child starts with SIGINT at its default: a shell's background job (`make test &`) ignores SIGINT, a child
+    # would inherit that, and Python installs no KeyboardInterrupt handler for an ignored signal.
+    p = subprocess.Popen(
+        [sys.executable, "-c", code],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL),
+    )
     assert p.stdout.readline().strip() == "ready"
     time.sleep(1.0)
     start = time.perf_counter()

@@ -77,12 +77,17 @@ def test_dielectric_reciprocity(alpha, angle, eta, distribution, g2, seed):
     a, b = random_hemisphere(rng, 64, 0.05), random_hemisphere(rng, 64, 0.05)
     kw = dict(roughness=alpha, angle=angle, distribution=distribution, g2=g2)
     f = lambda x, y: lamina.optics.rough_dielectric(x, y, [eta], **kw)[:, 0]  # noqa: E731
+
     # f64 rounding: wi·h and wo·h differ in the last bit, and near the critical angle dF/dcos is unbounded
     # (√-singularity), so F can differ by ~1e-10 relative (measured 1.3e-10); transmission also cancels in
-    # η_i(wi·h) + η_o(wo·h). Hence 1e-8. atol: subnormal values carry no relative precision.
-    np.testing.assert_allclose(f(a, b), f(b, a), rtol=1e-8, atol=1e-300)
-    np.testing.assert_allclose(f(-a, -b), f(-b, -a), rtol=1e-8, atol=1e-300)
-    np.testing.assert_allclose(f(a, -b) / eta**2, f(-b, a), rtol=1e-8, atol=1e-300)
+    # η_i(wi·h) + η_o(wo·h). Hence 1e-8. Values below 1e-6 of the peak are compared absolutely (lamina's
+    # validation convention): far in a lobe's tail the same rounding reached 2.8e-8 relative on a 7e-10 value.
+    def close(x, y):
+        np.testing.assert_allclose(x, y, rtol=1e-8, atol=1e-8 * 1e-6 * max(np.abs(y).max(), 1e-300))
+
+    close(f(a, b), f(b, a))
+    close(f(-a, -b), f(-b, -a))
+    close(f(a, -b) / eta**2, f(-b, a))
 
 
 def test_plastic_and_oren_nayar_reciprocity(rng):
