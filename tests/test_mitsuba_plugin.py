@@ -84,15 +84,9 @@ def test_delta_component_of_a_smooth_top(rng):
     np.testing.assert_allclose(np.array(weight).T[glossy], expected, rtol=1e-4)
 
 
-def test_sphere_rendered_by_mitsuba_matches_lamina_render():
-    """A rough-coated copper ball under a directional light, 32x32, orthographic: Mitsuba's path tracer (16 renders
-    of 16 spp, box filter) against lamina.render supersampled 8x8 per pixel (the box filter's pixel average). On
-    pixels lit and inside the disc at all four corners, z = |difference| / SE with SE from the 16 renders (15 dof):
-    mean z² is 15/13 ≈ 1.15 for noise alone (measured 1.10), asserted ≤ 1.3; every |z| ≤ 6."""
-    _jit()
-    stack, n = lamina.materials.suite("rough-coat-rough-copper"), 32
-    light = np.array([0.4, 0.5, 0.77]) / np.linalg.norm([0.4, 0.5, 0.77])
-    scene = mi.load_dict(
+def _ball_scene(stack, n: int, spp: int, light: np.ndarray):
+    """A unit sphere of `stack` (belcour) under a directional light, orthographic along −z, box filter, n x n."""
+    return mi.load_dict(
         {
             "type": "scene",
             "integrator": {"type": "path", "max_depth": 2},
@@ -100,7 +94,7 @@ def test_sphere_rendered_by_mitsuba_matches_lamina_render():
                 "type": "orthographic",
                 "to_world": mi.ScalarTransform4f().look_at(origin=[0, 0, 10], target=[0, 0, 0], up=[0, 1, 0]),
                 "film": {"type": "hdrfilm", "width": n, "height": n, "rfilter": {"type": "box"}, "pixel_format": "rgb"},
-                "sampler": {"type": "independent", "sample_count": 16},
+                "sampler": {"type": "independent", "sample_count": spp},
             },
             "ball": {"type": "sphere", "bsdf": lm.bsdf(stack, "belcour")},
             "sun": {
@@ -110,6 +104,17 @@ def test_sphere_rendered_by_mitsuba_matches_lamina_render():
             },
         }
     )
+
+
+def test_sphere_rendered_by_mitsuba_matches_lamina_render():
+    """A rough-coated copper ball under a directional light, 32x32, orthographic: Mitsuba's path tracer (16 renders
+    of 16 spp, box filter) against lamina.render supersampled 8x8 per pixel (the box filter's pixel average). On
+    pixels lit and inside the disc at all four corners, z = |difference| / SE with SE from the 16 renders (15 dof):
+    mean z² is 15/13 ≈ 1.15 for noise alone (measured 1.10), asserted ≤ 1.3; every |z| ≤ 6."""
+    _jit()
+    stack, n = lamina.materials.suite("rough-coat-rough-copper"), 32
+    light = np.array([0.4, 0.5, 0.77]) / np.linalg.norm([0.4, 0.5, 0.77])
+    scene = _ball_scene(stack, n, 16, light)
     renders = np.array([np.array(mi.render(scene, seed=10 + k)) for k in range(16)])
     mean, se = renders.mean(0), renders.std(0, ddof=1) / 4
     fine = lamina.render(
@@ -144,24 +149,7 @@ def test_renders_in_scalar_rgb():
     lm.register()
     stack, n = lamina.materials.suite("rough-coat-rough-copper"), 16
     light = np.array([0.4, 0.5, 0.77]) / np.linalg.norm([0.4, 0.5, 0.77])
-    scene = mi.load_dict(
-        {
-            "type": "scene",
-            "integrator": {"type": "path", "max_depth": 2},
-            "sensor": {
-                "type": "orthographic",
-                "to_world": mi.ScalarTransform4f().look_at(origin=[0, 0, 10], target=[0, 0, 0], up=[0, 1, 0]),
-                "film": {"type": "hdrfilm", "width": n, "height": n, "rfilter": {"type": "box"}, "pixel_format": "rgb"},
-                "sampler": {"type": "independent", "sample_count": 16},
-            },
-            "ball": {"type": "sphere", "bsdf": lm.bsdf(stack, "belcour")},
-            "sun": {
-                "type": "directional",
-                "direction": (-light).tolist(),
-                "irradiance": {"type": "rgb", "value": [1.0] * 3},
-            },
-        }
-    )
+    scene = _ball_scene(stack, n, 16, light)
     theirs = np.array(mi.render(scene, seed=3))
     fine = lamina.render(
         stack, "belcour", width=8 * n, height=8 * n, lights=[lamina.DirectionalLight(light, (1, 1, 1))]

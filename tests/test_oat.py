@@ -9,7 +9,27 @@ import numpy as np
 import pytest
 from lamina import oat
 
-DISC = oat.POISSON_DISC
+#: The chapter's 12 unit-disc taps (Oat 2006, Listing 2), as printed.
+DISC = np.array(
+    [
+        [-0.326212, -0.40581],
+        [-0.840144, -0.07358],
+        [-0.695914, 0.457137],
+        [-0.203345, 0.620716],
+        [0.96234, -0.194983],
+        [0.473434, -0.480026],
+        [0.519456, 0.767022],
+        [0.185461, -0.893124],
+        [0.507431, 0.064425],
+        [0.89642, 0.412458],
+        [-0.32194, -0.932615],
+        [-0.791559, -0.59771],
+    ]
+)
+
+
+def test_poisson_disc_is_the_listing():
+    np.testing.assert_array_equal(oat.POISSON_DISC, DISC)
 
 
 def _reflect_listing(v, n):

@@ -10,6 +10,7 @@ _Array = NDArray[np.float32] | NDArray[np.float64]
 __all__ = [
     "MODELS",
     "REFERENCE_MAX_DEPTH",
+    "OAT_POISSON_DISC",
     "__version__",
     "belcour_lobes",
     "check_layer",
@@ -55,6 +56,7 @@ __all__ = [
 
 MODELS: list[str]
 REFERENCE_MAX_DEPTH: int
+OAT_POISSON_DISC: list[list[float]]
 __version__: str
 
 def check_layer(layer: dict, name: str) -> None: ...

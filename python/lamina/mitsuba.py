@@ -236,23 +236,22 @@ def _plugin_class(mi):
                 return np.ones(len(wo))
             return self.stack.specular(wo, self.model, **self.options).mean(axis=-1)
 
-        def eval(self, ctx, si, wo, active=True):
-            jit = dr.is_jit_v(si.wi)
+        def _pairs(self, ctx, si, wo, active) -> tuple:
+            """lamina's (wi, wo) rows (n, 3) from Mitsuba's (wo, si.wi), and where the glossy component applies."""
             lwo, lwi = rows(si.wi), rows(wo)
             n = max(len(lwo), len(lwi))
             lwo, lwi = np.broadcast_to(lwo, (n, 3)), np.broadcast_to(lwi, (n, 3))
-            ok = mask(active, n) & (lwo[:, 2] > 0) & (lwi[:, 2] > 0) & self._enabled(ctx)[0]
+            return lwi, lwo, mask(active, n) & (lwo[:, 2] > 0) & (lwi[:, 2] > 0) & self._enabled(ctx)[0]
+
+        def eval(self, ctx, si, wo, active=True):
+            lwi, lwo, ok = self._pairs(ctx, si, wo, active)
             f = self.stack.eval(lwi, lwo, self.model, **self.options) * lwi[:, 2:3]
-            return out(np.where(ok[:, None], f, 0.0), mi.Color3f, jit)
+            return out(np.where(ok[:, None], f, 0.0), mi.Color3f, dr.is_jit_v(si.wi))
 
         def pdf(self, ctx, si, wo, active=True):
-            jit = dr.is_jit_v(si.wi)
-            lwo, lwi = rows(si.wi), rows(wo)
-            n = max(len(lwo), len(lwi))
-            lwo, lwi = np.broadcast_to(lwo, (n, 3)), np.broadcast_to(lwi, (n, 3))
-            ok = mask(active, n) & (lwo[:, 2] > 0) & (lwi[:, 2] > 0) & self._enabled(ctx)[0]
+            lwi, lwo, ok = self._pairs(ctx, si, wo, active)
             p = self.stack.pdf(lwi, lwo, self.model, **self.options) * (1.0 - self._delta_probability(ctx, lwo))
-            return out(np.where(ok, p, 0.0), None, jit)
+            return out(np.where(ok, p, 0.0), None, dr.is_jit_v(si.wi))
 
         def eval_pdf(self, ctx, si, wo, active=True):
             return self.eval(ctx, si, wo, active), self.pdf(ctx, si, wo, active)

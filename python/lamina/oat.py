@@ -23,23 +23,8 @@ VARIANTS = ("full", "normal_filtered", "vertex_normal")
 BORDERS = ("clamp", "wrap")
 #: The chapter's hard-coded texel size (a 1024-texel texture).
 CHAPTER_TEXEL = 1.0 / 1024.0
-#: The 12 unit-disc positions of the growable Poisson disc (Oat 2006, Listing 2).
-POISSON_DISC = np.array(
-    [
-        [-0.326212, -0.40581],
-        [-0.840144, -0.07358],
-        [-0.695914, 0.457137],
-        [-0.203345, 0.620716],
-        [0.96234, -0.194983],
-        [0.473434, -0.480026],
-        [0.519456, 0.767022],
-        [0.185461, -0.893124],
-        [0.507431, 0.064425],
-        [0.89642, 0.412458],
-        [-0.32194, -0.932615],
-        [-0.791559, -0.59771],
-    ]
-)
+#: The 12 unit-disc positions of the growable Poisson disc (Oat 2006, Listing 2), from src/render/oat.rs.
+POISSON_DISC = np.array(_lamina.OAT_POISSON_DISC)
 
 
 def _image(name: str, a, channels=(1, 3), lo=None, hi=None) -> np.ndarray:
