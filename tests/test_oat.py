@@ -160,7 +160,8 @@ def test_mesh_light_map_is_rasterized_and_dilated():
 
 
 def test_variants_agree_on_the_organic_sphere():
-    """The three variants of the same gooey ball: relative mean absolute difference to "full" (measured 0.0xx)."""
+    """The three variants of the same gooey ball: relative mean absolute difference to "full", measured 0.060
+    (normal_filtered) and 0.102 (vertex_normal) on this 96² ball (6 texels deep); the stated tolerance is 0.15."""
     tex = oat.organic_textures(256, seed=1)
     m = oat.Material(**tex, thickness=6.0)
     images = lamina.render(material=[m.with_variant(v) for v in oat.VARIANTS], width=96, height=96, lights=[LIGHT])
