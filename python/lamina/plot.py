@@ -123,7 +123,7 @@ def brdf_slices(
         )
     if plane == "incidence":
         handles.append(plt.Line2D([], [], color="0.5", ls=":", label="mirror direction θo = θi"))
-    axes[0, -1].legend(handles=handles, fontsize=7, loc="lower left")
+    fig.legend(handles=handles, fontsize=7, loc="outside right center")
     head = title or ", ".join(models)
     fig.suptitle(f"{head}\n{describe(stack)}", fontsize=9)
     return fig
