@@ -201,3 +201,21 @@ def test_cli_version_models_and_one_line_errors(tmp_path):
     assert bad.stderr.startswith("lamina: error: model 'microfacet'") and bad.stderr.count("\n") == 1
     bad = run("plot", "--thetas", "0,x", "--out", str(tmp_path))
     assert bad.returncode == 2 and "--thetas must be comma-separated numbers" in bad.stderr
+
+
+def test_import_lamina_makes_its_public_modules_available():
+    """`import lamina` is enough for every public module; the optional dependencies (dask, Mitsuba, matplotlib) load
+    only when a function needs them."""
+    import subprocess
+    import sys
+
+    code = (
+        "import sys, lamina\n"
+        "mods = ('reference', 'materials', 'optics', 'oat', 'atlas', 'plot', 'dask', 'mitsuba', 'renderer', 'gpu')\n"
+        "assert all(hasattr(lamina, m) for m in mods), [m for m in mods if not hasattr(lamina, m)]\n"
+        "heavy = {'dask', 'mitsuba', 'matplotlib'} & set(sys.modules)\n"
+        "assert not heavy, sorted(heavy)\n"
+        "print(lamina.materials.SUITE)\n"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
+    assert out.strip() == f"Factories({list(lamina.materials.SUITE)})"

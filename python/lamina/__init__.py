@@ -9,7 +9,7 @@ Evaluate f(wi, wo) of a layer stack on NumPy arrays:
 Conventions (local frame, z = normal, directions pointing away, f without the cosine): docs/conventions.md.
 """
 
-from . import atlas, materials, oat, optics, reference
+from . import atlas, dask, materials, mitsuba, oat, optics, plot, reference
 from ._lamina import __version__
 from .catalogue import MODELS, models
 from .choose import Choice, choose
@@ -26,6 +26,9 @@ __all__ = [
     "choose",
     "Choice",
     "atlas",
+    "dask",
+    "mitsuba",
+    "plot",
     "oat",
     "Conductor",
     "Dielectric",
