@@ -120,7 +120,7 @@ def model_rows(sets: dict) -> list:
 
             def evaluate(stack, wi, wo, m=model, o=options, device=device):
                 f = stack.eval(wi, wo, m, device=device, **o)
-                return f, atlas.model_albedo(stack, m, o)[:, 1]
+                return f, atlas.model_albedo(stack, m, o)[0][:, 1]
 
             if device == "gpu":
                 ns, prepare = atlas.cost(model, options, device="gpu")

@@ -33,13 +33,15 @@ def resolved(row: dict) -> bool:
     return float(np.max(np.array(row["noise"])[np.array(SUITE_THETAS) <= 80.0])) <= MAX_NOISE
 
 
-def model_albedo(stack, model: str, options: dict, samples: int = ALBEDO_SAMPLES, thetas=SUITE_THETAS) -> np.ndarray:
+def model_albedo(stack, model: str, options: dict, samples: int = ALBEDO_SAMPLES, thetas=SUITE_THETAS) -> tuple:
     """The model's albedo seen from incident angles `thetas` (degrees, x–z plane) as the mean weight of its own
-    importance sampling: (len(thetas), channels)."""
+    importance sampling, and that mean's standard error: ((len(thetas), channels), (len(thetas), channels))."""
     t = np.radians(thetas)
     wo = np.stack([np.sin(t), np.zeros_like(t), np.cos(t)], -1)[:, None, :]
     u = np.random.default_rng(0).uniform(size=(1, samples, 3))
-    return stack.sample(wo, u, model, **options)[1].mean(axis=1)
+    with np.errstate(all="ignore"):
+        weight = stack.sample(wo, u, model, **options)[1]
+    return weight.mean(axis=1), weight.std(axis=1) / np.sqrt(samples)
 
 
 def candidate_error(row: dict, label: str, model: str, options: dict, ground_truth_samples: int) -> float:
@@ -73,7 +75,7 @@ def measure(stack, candidates=CANDIDATES, samples: int = GROUND_TRUTH_SAMPLES, s
             lobe[label] = albedo[label] = None
             continue
         lobe[label] = lobe_errors(f, f_ref).tolist()
-        albedo[label] = np.abs(model_albedo(stack, model, options)[:, 1] - a_ref[:, 1]).tolist()
+        albedo[label] = np.abs(model_albedo(stack, model, options)[0][:, 1] - a_ref[:, 1]).tolist()
         flags[label] = {"nonfinite": int((~np.isfinite(f)).sum()), "negative": int((f < 0).sum())}
     return {
         "features": features(stack).tolist(),
@@ -243,15 +245,14 @@ def atlas_cell(stack, thetas, samples: int = ATLAS_SAMPLES) -> dict:
     f_ref, se = cached_reference(stack, wi, wo, samples=samples, seed=0, progress=False)
     a_ref, _ = reference_albedo(stack, ALBEDO_SAMPLES, 0, thetas)
     out = {"noise": (se.sum(axis=(1, 2)) / np.abs(f_ref).sum(axis=(1, 2))).tolist(), "ref_albedo": a_ref[:, 1].tolist()}
-    u = np.random.default_rng(0).uniform(size=(1, ALBEDO_SAMPLES, 3))
     for model in ATLAS_MODELS:
         with np.errstate(all="ignore"):
             f = stack.eval(wi, wo, model)
-            weight = stack.sample(wi, u, model)[1][..., 1]
+        albedo, albedo_se = model_albedo(stack, model, {}, thetas=thetas)
         out[model] = {
             "error": lobe_errors(np.nan_to_num(f, nan=0.0, posinf=0.0, neginf=0.0), f_ref).tolist(),
-            "albedo": weight.mean(axis=1).tolist(),
-            "albedo_se": (weight.std(axis=1) / np.sqrt(ALBEDO_SAMPLES)).tolist(),
+            "albedo": albedo[:, 1].tolist(),
+            "albedo_se": albedo_se[:, 1].tolist(),
             "nonfinite": int((~np.isfinite(f)).sum()),
             "negative": int((f < 0).sum()),
         }
