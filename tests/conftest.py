@@ -43,6 +43,16 @@ def unit(v: np.ndarray) -> np.ndarray:
     return v / np.linalg.norm(v, axis=-1, keepdims=True)
 
 
+def oren_nayar_albedo_limits(sigma: float) -> tuple[float, float]:
+    """Directional albedo per unit ρ of the qualitative Oren–Nayar lobe (1994 eq. 30) at θi = 0 and θi → 90°:
+    A and A + B/2 (at grazing sin α = 1, β = θo and ∫ max(0, cos φ) sin²θo dω / π = 1/2). For σ below ~0.3 rad the
+    grazing value exceeds 1: the qualitative model is not energy-conserving there, so no stack on it can be held to
+    an albedo of 1."""
+    s2 = sigma * sigma
+    a, b = 1 - 0.5 * s2 / (s2 + 0.33), 0.45 * s2 / (s2 + 0.09)
+    return a, a + b / 2
+
+
 def random_hemisphere(rng: np.random.Generator, n: int, min_cos: float = 0.02) -> np.ndarray:
     """n directions uniform on the upper hemisphere with cos θ >= min_cos."""
     z = rng.uniform(min_cos, 1.0, n)

@@ -1,6 +1,7 @@
 """The wgpu path against the CPU: every microfacet configuration, Belcour on the suite with its options, random
 stacks, spectral channels and inputs longer than one dispatch agree to 1e-4 relative on values above 1e-6 of the peak
-(the issue's criterion; the float32 shader against the float64 core measures about 1e-5 at worst). Runs on whatever
+(the issue's criterion; the float32 shader against the float64 core measures about 1e-5 at worst), plus where f
+is ill-conditioned in float32 what 4-ulp changes of the inputs alone move the float64 result by. Runs on whatever
 adapter wgpu finds: lavapipe in CI (make test installs it when root). Without an adapter these tests fail, saying how
 to get one, unless LAMINA_SKIP_GPU=1."""
 
@@ -9,7 +10,7 @@ import os
 import lamina
 import numpy as np
 import pytest
-from hypothesis import assume, given, settings
+from hypothesis import assume, example, given, settings
 from hypothesis import strategies as st
 from lamina import gpu, materials
 
@@ -31,6 +32,20 @@ def _directions(n: int, seed: int) -> tuple[np.ndarray, np.ndarray]:
     return wi, wo
 
 
+def float32_conditioning(stack, wi, wo, model, wavelengths, options, seed) -> np.ndarray:
+    """How far the float64 result itself moves when every input component moves by 4 float32 ulps (the most of
+    4 random draws), relative to it: what any float32 evaluation may differ by on top of RTOL. About 1e-6 almost
+    everywhere; up to ~1e-3 where f has an infinite slope, e.g. a Fresnel factor at the critical angle (η < 1)."""
+    rng = np.random.default_rng(seed + 1)
+    cpu = stack.eval(wi, wo, model, wavelengths=wavelengths, **options)
+    spread = np.zeros_like(cpu)
+    for _ in range(4):
+        nudge = lambda w: w * (1 + 4 * np.finfo(np.float32).eps * rng.uniform(-1, 1, w.shape))  # noqa: E731
+        moved = stack.eval(nudge(wi), nudge(wo), model, wavelengths=wavelengths, **options)
+        spread = np.maximum(spread, np.abs(moved - cpu) / np.maximum(np.abs(cpu), 1e-300))
+    return spread
+
+
 def assert_parity(stack, model="microfacet", n=20_000, seed=0, wavelengths=None, **options):
     wi, wo = _directions(n, seed)
     cpu = stack.eval(wi, wo, model, wavelengths=wavelengths, **options)
@@ -38,7 +53,10 @@ def assert_parity(stack, model="microfacet", n=20_000, seed=0, wavelengths=None,
     assert out.dtype == np.float32 and out.shape == cpu.shape
     big = cpu > 1e-6 * cpu.max()
     rel = np.abs(out[big] - cpu[big]) / cpu[big]
-    assert rel.max() <= RTOL, f"worst relative difference {rel.max():.2e} at {np.argmax(rel)}"
+    allowed = RTOL + float32_conditioning(stack, wi, wo, model, wavelengths, options, seed)[big]
+    worst = np.argmax(rel - allowed)
+    assert rel[worst] <= allowed[worst], f"relative difference {rel[worst]:.2e} > {allowed[worst]:.2e} at {worst}"
+    assert np.median(allowed) < 2 * RTOL  # the bulk of the values stays well conditioned: no blanket loosening
     assert np.all(np.abs(out[~big]) <= 2e-6 * cpu.max())  # zeros (below the horizon) stay zero
     assert cpu.max() > 0
 
@@ -111,6 +129,9 @@ def test_random_belcour_stacks(ior, coat, angle, sigma_a, base, seed):
     angle=st.floats(-3.0, 3.0),
     seed=st.integers(0, 1000),
 )
+@example(eta=0.75, k=0.0, ax=1.0, ay=1.0, angle=0.0, seed=71)  # a half-vector 1e-5 from the critical angle (CI)
+@example(eta=0.5, k=1e-5, ax=1.0, ay=1.0, angle=0.0, seed=0)  # total internal reflection with κ > 0: a² cancelled
+@example(eta=1.0, k=1.0, ax=0.01, ay=1.0, angle=1.0, seed=241)  # 1.5% of the values ill-conditioned (α = 0.01)
 def test_random_conductors(eta, k, ax, ay, angle, seed):
     # η + iκ near 1 + 0i reflects nothing but the rounding of a difference of equal terms (F = 0 exactly at η = 1,
     # κ = 0): below float32's resolution, and no material.

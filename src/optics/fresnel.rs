@@ -41,7 +41,9 @@ pub fn conductor(cos_i: f64, eta: f64, k: f64) -> f64 {
     let sin2 = 1.0 - cos2;
     let t0 = eta * eta - k * k - sin2;
     let a2b2 = (t0 * t0 + 4.0 * eta * eta * k * k).sqrt();
-    let a = (0.5 * (a2b2 + t0)).max(0.0).sqrt();
+    // a² = (a2b2 + t0)/2, written as 2η²κ²/(a2b2 − t0) for t0 < 0 (total internal reflection when κ → 0), where the
+    // sum cancels: in float32 it loses F − 1 entirely for κ ≈ 1e-5.
+    let a = if t0 >= 0.0 { 0.5 * (a2b2 + t0) } else { 2.0 * eta * eta * k * k / (a2b2 - t0) }.sqrt();
     // Both ratios are ((a ∓ cos)² + b²)-like, ≥ 0: clamped so that rounding (e.g. η = 1, κ = 0, where F = 0) cannot
     // make them negative; a vanishing denominator (grazing incidence on η = 1, κ = 0) is the grazing limit 1.
     let den_s = a2b2 + 2.0 * a * cos_i + cos2;

@@ -62,7 +62,11 @@ fn fresnel_conductor(cos_in: f32, eta: f32, k: f32) -> f32 {
     let sin2 = 1.0 - cos2;
     let t0 = eta * eta - k * k - sin2;
     let a2b2 = sqrt(t0 * t0 + 4.0 * eta * eta * k * k);
-    let a = sqrt(max(0.5 * (a2b2 + t0), 0.0));
+    var a2 = 0.5 * (a2b2 + t0);
+    if t0 < 0.0 {
+        a2 = 2.0 * eta * eta * k * k / (a2b2 - t0); // the same a² without the cancellation (fresnel::conductor)
+    }
+    let a = sqrt(a2);
     let den_s = a2b2 + 2.0 * a * cos_i + cos2;
     var r_s = 1.0;
     if den_s > 0.0 {
