@@ -16,35 +16,56 @@ from pathlib import Path
 import lamina
 import numpy as np
 from lamina import atlas
-from lamina.choose import CANDIDATES, FEATURES, REFERENCE_SAMPLES, prepare, rank
+from lamina.choose import CANDIDATES, FEATURES, REFERENCE_SAMPLES, START_WEIGHTS, covered, distances, prepare, rank
 
 ROOT = Path(__file__).resolve().parents[1]
 TRAIN, HELD_OUT = 200, 100
 #: Tolerances (relative L1 lobe error) at which `choose` is fitted and validated.
 TOLERANCES = (0.05, 0.1, 0.2, 0.3)
-#: The predictor's settings tried by leave-one-out on the training set: neighbours and quantile.
+#: The predictor's settings tried by leave-one-out on the training set: neighbours and quantiles; the feature weights
+#: are fitted by coordinate ascent from START_WEIGHTS, one weight at a time scaled by FACTORS, on the smaller grid
+#: ASCENT_GRID of the other settings.
 KS = (3, 5, 7, 9)
 QUANTILES = (0.6, 0.7, 0.8, 0.9)
 NOISE_QUANTILES = (0.5, 0.7, 0.9)
+FACTORS = (0.25, 0.5, 2.0, 4.0)
+ASCENT_GRID = [(k, q, qn) for k in (3, 5) for q in (0.6, 0.7, 0.8) for qn in (0.5, 0.7, 0.9)]
 #: θi ≤ 80° of the suite grid: the angles a wi=None choice is about.
 LOW = np.array(lamina.reference.SUITE_THETAS) <= 80.0
 
 
-def outcomes(d: dict, rows: list, k: int, q: float, qn: float, tol: float, leave_one_out: bool) -> list:
-    """Per stack of `rows`: (chosen label, its error within tol, its cost within 1.25x the cheapest candidate within
-    tol; None when no candidate is within tol)."""
-    w = LOW / LOW.sum()
+def truth(d: dict, rows: list) -> list:
+    """Per stack: whether each candidate represents it, and every candidate's measured error (as `rank` labels them)."""
+    gt = d["ground_truth_samples"]
     out = []
-    for i, r in enumerate(rows):
-        dd = d
-        if leave_one_out:
-            dd = prepare({**d, "train": d["train"][:i] + d["train"][i + 1 :], "k": k})
-        ranked = rank(dd, np.array(r["features"]), r["lobe_error"]["microfacet"] is not None, w, k, q, qn)
-        fits = [c for c in ranked if c[3] <= tol]
-        label, model, options, _, cost = fits[0] if fits else ranked[-1]
-        errors = {c[0]: atlas.candidate_error(r, c[0], c[1], c[2], d["ground_truth_samples"]) for c in ranked}
-        within = [c[4] for c in ranked if errors[c[0]] <= tol]
-        out.append((label, errors[label] <= tol, cost <= 1.25 * min(within) if within else None))
+    for r in rows:
+        can = {label: r["lobe_error"][label] is not None for label, _, _ in CANDIDATES}
+        err = {label: atlas.candidate_error(r, label, model, options, gt) for label, model, options in CANDIDATES}
+        for n in d["reference_samples"]:
+            label = f"reference, {n} paths"
+            err[label] = atlas.candidate_error(r, label, "reference", {"samples": n}, gt)
+        out.append((np.array(r["features"]), can, err))
+    return out
+
+
+def outcomes(d: dict, known: list, leave_one_out: bool) -> dict:
+    """Per tolerance, per stack of `known` (from `truth`): (chosen label, its error within tol, its cost within
+    1.25x the cheapest candidate within tol; None when no candidate is within tol). With leave_one_out, `known` is
+    d's own training set and each stack is predicted without itself."""
+    w = LOW / LOW.sum()
+    x = np.array([f for f, _, _ in known])
+    dist = distances(d, x)
+    if leave_one_out:
+        np.fill_diagonal(dist, np.inf)
+    out = {tol: [] for tol in TOLERANCES}
+    for i, (_, can, err) in enumerate(known):
+        inside = covered(np.delete(d["x"], i, axis=0) if leave_one_out else d["x"], x[i])
+        ranked = rank(d, dist[i], can, w, inside)
+        for tol in TOLERANCES:
+            fits = [c for c in ranked if c[3] <= tol]
+            label, _, _, _, cost = fits[0] if fits else ranked[-1]
+            within = [c[4] for c in ranked if err[c[0]] <= tol]
+            out[tol].append((label, err[label] <= tol, cost <= 1.25 * min(within) if within else None))
     return out
 
 
@@ -55,20 +76,31 @@ def rates(o: list) -> tuple:
     return np.mean([x[1] for x in o]), np.mean(efficient), len(o) - len(efficient)
 
 
+def margin(d: dict, known: list, weights, k: int, q: float, qn: float) -> float:
+    """The worst, over TOLERANCES, of leave-one-out coverage over 0.9 and cost efficiency over 0.8."""
+    dd = prepare({**d, "weights": list(weights), "k": k, "quantile": q, "noise_quantile": qn})
+    o = outcomes(dd, known, leave_one_out=True)
+    return min(min(within - 0.9, efficient - 0.8) for within, efficient, _ in map(rates, o.values()))
+
+
 def fit(d: dict) -> tuple:
-    """(k, quantile, noise quantile) maximizing the worst margin over TOLERANCES of leave-one-out coverage over 0.9
-    and of cost efficiency over 0.8 on the training set, and the table of every setting's margin."""
-    table = []
-    for k in KS:
-        for q in QUANTILES:
-            for qn in NOISE_QUANTILES:
-                margins = []
-                for tol in TOLERANCES:
-                    within, efficient, _ = rates(outcomes(d, d["train"], k, q, qn, tol, leave_one_out=True))
-                    margins.append(min(within - 0.9, efficient - 0.8))
-                table.append((k, q, qn, min(margins)))
+    """(weights, k, quantile, noise quantile) maximizing the leave-one-out `margin` on the training set, and the
+    table of every (k, q, qn)'s margin at the fitted weights."""
+    known = truth(d, d["train"])
+    best = lambda wts: max((margin(d, known, wts, *s), s) for s in ASCENT_GRID)  # noqa: E731
+    weights = list(START_WEIGHTS)
+    current, _ = best(weights)
+    for _ in range(2):
+        for i in range(len(weights)):
+            for factor in FACTORS:
+                trial = weights[:i] + [weights[i] * factor] + weights[i + 1 :]
+                score, _ = best(trial)
+                if score > current + 1e-9:
+                    current, weights = score, trial
+                    print(f"fit: {FEATURES[i]} weight x{factor:g}: margin {score:+.3f}", file=sys.stderr)
+    table = [(k, q, qn, margin(d, known, weights, k, q, qn)) for k in KS for q in QUANTILES for qn in NOISE_QUANTILES]
     k, q, qn, _ = max(table, key=lambda t: t[3])
-    return k, q, qn, table
+    return weights, k, q, qn, table
 
 
 def measure_set(seed: int, n: int, client=None) -> list:
@@ -111,9 +143,13 @@ def report(data: dict, table: list, everything: dict) -> None:
         "from the measured ground truth's standard errors to n paths. `microfacet` is exact where it applies.",
         "",
         f"Predictor (`lamina.choose.rank`): the {q:g} quantile of the errors of the k = {k} nearest training stacks "
-        "in the weighted, standardized feature space of `lamina.choose.features`, and for the reference the "
-        f"{qn:g} quantile of their noise; k and the quantiles maximize, by leave-one-out on the training stacks, the "
-        "worst margin of coverage over 90% and of cost efficiency over 80% (table below).",
+        "that the model represents, in the weighted, standardized feature space of `lamina.choose.features`, and "
+        f"for the reference the {qn:g} quantile of the k nearest stacks' noise. The feature weights, k and the "
+        "quantiles maximize, by leave-one-out on the training stacks, the worst margin of coverage over 90% and of "
+        "cost efficiency over 80% (table below). The weights, fitted by coordinate ascent from "
+        f"{list(START_WEIGHTS)} (x{', x'.join(f'{f:g}' for f in FACTORS)} one at a time): "
+        + ", ".join(f"{name} {wt:g}" for name, wt in zip(FEATURES, data["weights"]))
+        + ".",
         "",
         "Costs (ns per evaluation, 1M float32 pairs, this machine): "
         + ", ".join(f"{c[0]} {data['costs'][c[0]]['ns_per_eval']:.1f}" for c in CANDIDATES)
@@ -127,8 +163,9 @@ def report(data: dict, table: list, everything: dict) -> None:
         "(goal ≥ 80%) | no candidate within tolerance | choices |",
         "|---:|---:|---:|---:|---|",
     ]
+    held_out = outcomes(d, truth(d, data["held_out"]), leave_one_out=False)
     for tol in TOLERANCES:
-        o = outcomes(d, data["held_out"], k, q, qn, tol, leave_one_out=False)
+        o = held_out[tol]
         within, efficient, none = rates(o)
         picks = {}
         for label, _, _ in o:
@@ -140,7 +177,8 @@ def report(data: dict, table: list, everything: dict) -> None:
         )
     lines += [
         "",
-        "Leave-one-out margins on the training set, min over the tolerances of min(coverage − 0.9, efficiency − 0.8):",
+        "Leave-one-out margins on the training set at the fitted weights, min over the tolerances of "
+        "min(coverage − 0.9, efficiency − 0.8):",
         "",
         "| k | quantile | " + " | ".join(f"noise q = {x:g}" for x in NOISE_QUANTILES) + " |",
         "|---:|---:|" + "---:|" * len(NOISE_QUANTILES),
@@ -178,13 +216,13 @@ def main() -> None:
         (ROOT / "docs" / "population.json").write_text(json.dumps(data, indent=1))
     resolved = {**data, "train": [r for r in data["train"] if atlas.resolved(r)]}
     resolved["held_out"] = [r for r in data["held_out"] if atlas.resolved(r)]
-    data["k"], data["quantile"], data["noise_quantile"], table = fit(resolved)
+    data["weights"], data["k"], data["quantile"], data["noise_quantile"], table = fit(resolved)
     predictor = {k: v for k, v in data.items() if k != "held_out"}
     predictor["train"] = [
         {k: r[k] for k in ("features", "noise", "lobe_error")} for r in data["train"] if atlas.resolved(r)
     ]
     (ROOT / "python" / "lamina" / "data" / "choose.json").write_text(json.dumps(predictor))
-    report({**resolved, **{k: data[k] for k in ("k", "quantile", "noise_quantile")}}, table, data)
+    report({**resolved, **{k: data[k] for k in ("weights", "k", "quantile", "noise_quantile")}}, table, data)
     print(
         f"wrote docs/population.json, python/lamina/data/choose.json and docs/choose.md "
         f"({len(data['train'])} + {len(data['held_out'])} stacks)",

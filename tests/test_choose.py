@@ -35,11 +35,11 @@ def held_out(tmp_path_factory):
             os.environ["LAMINA_CACHE"] = old
 
 
-@pytest.mark.parametrize("tolerance", [0.1, 0.2, 0.3])
+@pytest.mark.parametrize("tolerance", [0.05, 0.1, 0.2, 0.3])
 def test_choose_on_held_out_stacks(held_out, tolerance):
-    """The chosen model's measured error is within tolerance in >= 90% of the held-out stacks (the issue's goal),
-    and its cost within 1.25x the cheapest candidate that meets the tolerance (known by measuring all), among the
-    stacks where one does. Stacks the reference does not resolve (lamina.atlas.resolved) have no measured error."""
+    """The issue's goals: the chosen model's measured error is within tolerance in >= 90% of the held-out stacks,
+    and its cost within 1.25x the cheapest candidate that meets the tolerance (known by measuring all) in >= 80% of
+    the stacks where one does. Stacks the reference does not resolve (lamina.atlas.resolved) have no measured error."""
     gt = _data()["ground_truth_samples"]
     resolved = [(stack, row) for stack, row in held_out if atlas.resolved(row)]
     assert len(resolved) >= 90  # the stacks whose lobes the reference resolves (docs/choose.md)
@@ -56,9 +56,7 @@ def test_choose_on_held_out_stacks(held_out, tolerance):
         if cheapest is not None:  # else no candidate meets the tolerance, and there is no cheapest one
             efficient.append(c.cost_ns <= 1.25 * cheapest)
     assert np.mean(within) >= 0.9, f"error within {tolerance} in {np.mean(within):.0%} of held-out stacks"
-    # The issue's goal is >= 80%; the predictor reaches 72–82% depending on the tolerance (docs/choose.md), so this
-    # guards the measured level, and the shortfall is reported, not hidden.
-    assert np.mean(efficient) >= 0.7, f"cost within 1.25x the cheapest in {np.mean(efficient):.0%}"
+    assert np.mean(efficient) >= 0.8, f"cost within 1.25x the cheapest in {np.mean(efficient):.0%}"
 
 
 def _candidates(choice):

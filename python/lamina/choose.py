@@ -4,8 +4,9 @@ within a tolerance, and `features` describes a stack for that prediction.
 The prediction is a k-nearest-neighbour quantile over measured data (python/lamina/data/choose.json, written by
 `make population` from the seed-1 population of lamina.materials.population): each stack is a point in the weighted,
 standardized feature space of `features`, and a candidate's predicted error at θi is a quantile of its measured
-errors on the k nearest measured stacks (linear in θi between the measured angles; `rank`). k and the quantiles are
-fitted by leave-one-out on the seed-1 stacks. No reference runs inside `choose`.
+errors on the k nearest measured stacks that the model represents (linear in θi between the measured angles; `rank`).
+The feature weights, k and the quantiles are fitted by leave-one-out on the seed-1 stacks (scripts/population.py).
+No reference runs inside `choose`.
 docs/choose.md validates it on the seed-2 population, which the predictor never saw."""
 
 from __future__ import annotations
@@ -38,8 +39,8 @@ FEATURES = (
     "diffuse_base",
     "dielectric_layers",
 )
-#: Weights of the standardized features in the neighbour distance: base kind and layer count dominate.
-WEIGHTS = np.array([1.0, 1.0, 1.0, 1.0, 1.0, 1.0, 3.0, 3.0])
+#: The feature weights `make population` starts its fit from: base kind and layer count dominate.
+START_WEIGHTS = (1.0, 1.0, 1.0, 1.0, 1.0, 1.0, 3.0, 3.0)
 
 
 def features(stack) -> np.ndarray:
@@ -85,12 +86,12 @@ class Choice:
 
 
 def prepare(d: dict) -> dict:
-    """The predictor from choose.json's content: the training features, their scale, and per candidate the
+    """The predictor from choose.json's content: the training features and their weighted scale, per candidate the
     errors (inf where it cannot represent the stack) and the reference's noise for one path."""
     d = dict(d)
     x = np.array([r["features"] for r in d["train"]])
     d["x"] = x
-    d["scale"] = np.where(x.std(axis=0) > 0, x.std(axis=0), 1.0) / WEIGHTS
+    d["scale"] = np.where(x.std(axis=0) > 0, x.std(axis=0), 1.0) / np.asarray(d["weights"])
     d["errors"] = {
         label: np.array(
             [r["lobe_error"][label] if r["lobe_error"][label] is not None else [np.inf] * 5 for r in d["train"]]
@@ -98,13 +99,19 @@ def prepare(d: dict) -> dict:
         for label, _, _ in CANDIDATES
     }
     d["noise"] = np.array([r["noise"] for r in d["train"]]) * np.sqrt(d["ground_truth_samples"])
-    # The population's reach: the largest distance from a training stack to its k-th nearest other one. A stack
-    # farther than that from its own k-th nearest has no measured neighbours to predict from.
-    dist = np.sqrt((((x[:, None] - x[None]) / d["scale"]) ** 2).sum(-1))
-    np.fill_diagonal(dist, np.inf)
-    k = min(d.get("k", 3), len(x) - 1)
-    d["reach"] = float(np.sort(dist, axis=1)[:, k - 1].max())
     return d
+
+
+def covered(train: np.ndarray, x: np.ndarray) -> bool:
+    """Whether features x lie inside the measured population `train` (n, n_features): some training stack shares
+    its base kind and number of dielectric layers, and each continuous feature lies within the range those stacks
+    span, widened by a quarter of the feature's standard deviation over all of them. Elsewhere the neighbours'
+    errors say nothing about the stack (a scattering slab over a diffuse base, when only patinas scatter)."""
+    same = train[(train[:, 6] == x[6]) & (train[:, 7] == x[7])]
+    if not len(same):
+        return False
+    margin = 0.25 * train[:, :6].std(axis=0)
+    return bool(np.all(x[:6] >= same[:, :6].min(axis=0) - margin) and np.all(x[:6] <= same[:, :6].max(axis=0) + margin))
 
 
 @lru_cache(maxsize=1)
@@ -112,27 +119,36 @@ def _data() -> dict:
     return prepare(json.loads((Path(__file__).parent / "data" / "choose.json").read_text()))
 
 
-def rank(
-    d: dict, x: np.ndarray, microfacet_exact: bool, w: np.ndarray, k: int, quantile: float, noise_quantile: float
-) -> list:
-    """Every candidate as (label, model, options, predicted error, cost ns), cheapest first: the `quantile` of the
-    errors of the `k` training stacks nearest to features `x`, averaged over the angles with weights `w`; 0 for
-    model "microfacet" where it is exact (it refuses other stacks); for the reference at n paths, √(2/π) times the
-    `noise_quantile` of the neighbours' noise for one path, over √n. Beyond the population's reach (`prepare`) the
-    approximate models get no prediction (inf), so that only exact answers remain."""
-    dist = np.sqrt((((d["x"] - x) / d["scale"]) ** 2).sum(axis=1))
+def distances(d: dict, x: np.ndarray) -> np.ndarray:
+    """Distances in the weighted, standardized feature space from features x (..., n_features) to every training
+    stack (..., n_train)."""
+    return np.sqrt((((x[..., None, :] - d["x"]) / d["scale"]) ** 2).sum(axis=-1))
+
+
+def rank(d: dict, dist: np.ndarray, represents: dict, w: np.ndarray, inside: bool) -> list:
+    """Every candidate as (label, model, options, predicted error, cost ns), cheapest first, for a stack at
+    distances `dist` from the training stacks: inf where the model cannot represent it (`represents[label]` false);
+    0 for "microfacet" where it can (it is exact there); else the d["quantile"] of the errors of the d["k"] nearest
+    training stacks the model represents, averaged over the angles with weights `w`. The reference at n paths:
+    √(2/π) times the d["noise_quantile"] of the k nearest stacks' noise for one path, over √n. A stack not `inside`
+    the measured population (`covered`) gets no prediction (inf) from the approximate models, so that only exact
+    answers remain."""
+    k = d["k"]
     near = np.argsort(dist, kind="stable")[:k]
-    inside = dist[near[-1]] <= d["reach"]
     rows = []
     for label, model, options in CANDIDATES:
-        if model == "microfacet":
-            err = 0.0 if microfacet_exact else np.inf
-        elif not inside:  # no measured stack like this one: no prediction for the approximate models
+        known = np.isfinite(d["errors"][label][:, 0])
+        if not represents[label]:
+            err = np.inf
+        elif model == "microfacet":
+            err = 0.0
+        elif not inside or not known.any():
             err = np.inf
         else:
-            err = float(np.quantile(d["errors"][label][near], quantile, axis=0) @ w)
+            mine = np.argsort(np.where(known, dist, np.inf), kind="stable")[: min(k, known.sum())]
+            err = float(np.quantile(d["errors"][label][mine], d["quantile"], axis=0) @ w)
         rows.append((label, model, options, err, d["costs"][label]["ns_per_eval"]))
-    noise = float(np.quantile(d["noise"][near], noise_quantile, axis=0) @ w)
+    noise = float(np.quantile(d["noise"][near], d["noise_quantile"], axis=0) @ w)
     for n in d["reference_samples"]:
         err = np.sqrt(2 / np.pi) * noise / np.sqrt(n)
         rows.append(
@@ -156,13 +172,16 @@ def _weights(thetas, wi) -> np.ndarray:
     return np.mean([[np.interp(t, thetas, eye[k]) for k in range(len(thetas))] for t in theta], axis=0)
 
 
-def _single_interface_exact(stack) -> bool:
-    """Whether model 'microfacet' evaluates the stack exactly (it refuses others)."""
-    try:
-        stack.eval([0.0, 0.0, 1.0], [0.0, 0.0, 1.0], "microfacet")
-    except ValueError:
-        return False
-    return True
+def represents(stack) -> dict:
+    """Per candidate label, whether its model accepts the stack (models refuse what they cannot represent)."""
+    out = {}
+    for label, model, options in CANDIDATES:
+        try:
+            stack.eval([0.0, 0.0, 1.0], [0.0, 0.0, 1.0], model, **options)
+            out[label] = True
+        except ValueError:
+            out[label] = False
+    return out
 
 
 def choose(stack, tolerance: float = 0.05, wi=None) -> Choice:
@@ -173,16 +192,15 @@ def choose(stack, tolerance: float = 0.05, wi=None) -> Choice:
     if isinstance(tolerance, bool) or not isinstance(tolerance, (int, float)) or not 0.0 < tolerance < 1e3:
         raise ValueError(f"tolerance must be a relative L1 lobe error > 0, got {tolerance!r}")
     d = _data()
-    w = _weights(d["thetas"], wi)
-    rows = rank(d, features(stack), _single_interface_exact(stack), w, d["k"], d["quantile"], d["noise_quantile"])
+    x = features(stack)
+    inside, can = covered(d["x"], x), represents(stack)
+    rows = rank(d, distances(d, x), can, _weights(d["thetas"], wi), inside)
     table = tuple((r[0], r[3], r[4]) for r in rows)
     fits = [r for r in rows if r[3] <= tolerance]
-    x = features(stack)
-    nearest = np.sort(np.sqrt((((d["x"] - x) / d["scale"]) ** 2).sum(axis=1)))[d["k"] - 1]
     outside = (
-        f"outside the measured population (its {d['k']} nearest measured stacks are within {nearest:.2f}, farther "
-        f"than the population's own reach {d['reach']:.2f}): no prediction for the approximate models; "
-        if nearest > d["reach"]
+        "outside the measured population (no measured stack of its base kind and layer count spans its features; "
+        "lamina.choose.covered): no prediction for the approximate models; "
+        if not inside
         else ""
     )
     if not fits:
@@ -194,7 +212,7 @@ def choose(stack, tolerance: float = 0.05, wi=None) -> Choice:
         def predicted(r) -> str:
             if not np.isinf(r[3]):
                 return f"{r[3]:.3g}"
-            return "no prediction" if outside and r[1] != "microfacet" else "cannot represent this stack"
+            return "no prediction" if can.get(r[0], True) else "cannot represent this stack"
 
         cheaper = [f"{r[0]} ({predicted(r)})" for r in rows if r[4] < cost]
         reason = (
