@@ -45,6 +45,7 @@ __all__ = [
     "oat_slab_exit",
     "OatMaterial",
     "render_gpu",
+    "render_oat_gpu",
     "sample",
     "sample_visible",
     "sky",
@@ -212,6 +213,14 @@ def render_gpu(
     stacks: list[tuple[list[dict], float]],
     model: str,
     options: dict | None,
+    shape: str,
+    camera: tuple[tuple[float, float, float], tuple[float, float, float], float] | None,
+    lights: list[tuple[str, tuple[float, float, float], tuple[float, float, float]]],
+    width: int,
+    height: int,
+) -> _Array: ...
+def render_oat_gpu(
+    materials: list[OatMaterial],
     shape: str,
     camera: tuple[tuple[float, float, float], tuple[float, float, float], float] | None,
     lights: list[tuple[str, tuple[float, float, float], tuple[float, float, float]]],

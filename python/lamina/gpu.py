@@ -39,9 +39,10 @@ def models() -> list[str]:
     return list(_lamina.gpu_models()) if hasattr(_lamina, "gpu_models") else []
 
 
-def use_gpu(device: str, model: str) -> bool:
-    """Whether `device` means the GPU for `model`: "gpu" always (RuntimeError when there is no adapter, saying how to
-    get one), "auto" when there is a hardware GPU (not lavapipe) and the model runs on it, "cpu" never."""
+def use_gpu(device: str, model: str | None) -> bool:
+    """Whether `device` means the GPU for `model` (None: Oat's materials, which always run there): "gpu" always
+    (RuntimeError when there is no adapter, saying how to get one), "auto" when there is a hardware GPU (not
+    lavapipe) and the model runs on it, "cpu" never."""
     if device not in DEVICES:
         raise ValueError(f"device must be one of {DEVICES}, got {device!r}")
     if device == "cpu":
@@ -51,7 +52,7 @@ def use_gpu(device: str, model: str) -> bool:
         if info is None:
             raise RuntimeError(f"device='gpu': {why}")
         return True
-    return info is not None and info["device_type"] != "Cpu" and model in models()
+    return info is not None and info["device_type"] != "Cpu" and (model is None or model in models())
 
 
 def resident_throughput(stack, wi, wo, model: str = "microfacet", repeats: int = 5, **options) -> float:

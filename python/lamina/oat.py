@@ -130,10 +130,11 @@ class Material:
         m.variant = variant
         return m
 
-    def _prepared(self, shape, light_specs) -> object:
-        """The material for one render: its light map (variant "full") for the shape and lights."""
+    def _prepared(self, shape, light_specs, light_map: bool = True) -> object:
+        """The material for one render: with `light_map`, its light map (variant "full") for the shape and lights,
+        computed on the CPU (the GPU computes its own)."""
         light = None
-        if self.variant == "full":
+        if light_map and self.variant == "full":
             light = _lamina.oat_light_map(self.outer_normal, shape, light_specs, self.dilate)
         return _lamina.OatMaterial(
             self.outer_albedo,

@@ -5,7 +5,10 @@
 //!
 //! Models on the GPU so far: `microfacet` (every option) and `belcour` (tabulated, every other option). A model's
 //! tables are uploaded once per stack and options and kept (`uploaded`). Inputs of any length are split into
-//! dispatches of at most CHUNK pairs.
+//! dispatches of at most CHUNK pairs. The renderer (`render`, shaders/scene.wgsl and render.wgsl) and Oat 2006's
+//! gooey layers (`oat`, shaders/oat.wgsl) render the sphere or the plane under directional and point lights.
+
+pub mod oat;
 
 use crate::error::{value_error, Error, Result};
 use crate::models::{belcour, microfacet, Options};
@@ -17,7 +20,9 @@ use wgpu::util::DeviceExt;
 
 /// The shared primitives.
 pub const OPTICS: &str = include_str!("shaders/optics.wgsl");
-/// The renderer's deterministic kernel, composed after a model.
+/// The renderer's scene: camera, shapes and lights, composed before the kernels that render it.
+pub const SCENE: &str = include_str!("shaders/scene.wgsl");
+/// The renderer's deterministic kernel, composed after a model and SCENE.
 pub const RENDER: &str = include_str!("shaders/render.wgsl");
 /// The models' shaders, by model name: each is composed after OPTICS.
 pub const MODELS: &[(&str, &str)] =
@@ -36,13 +41,20 @@ pub fn supports(model: &str) -> bool {
 /// Pairs per dispatch: 2^21 (32768 workgroups of 64, within every adapter's dispatch limit).
 const CHUNK: usize = 1 << 21;
 
-/// The adapter, its device, and per model (in the order of MODELS) its eval and render pipelines.
+/// A model's render shader: the model, the scene and the render kernel.
+pub fn compose_render(model: &str) -> Option<String> {
+    compose(model).map(|m| format!("{m}\n{SCENE}\n{RENDER}"))
+}
+
+/// The adapter, its device, per model (in the order of MODELS) its eval and render pipelines, and Oat's light-map
+/// and render pipelines.
 pub struct Gpu {
     pub info: wgpu::AdapterInfo,
     device: wgpu::Device,
     queue: wgpu::Queue,
     pipelines: Vec<wgpu::ComputePipeline>,
     renderers: Vec<wgpu::ComputePipeline>,
+    oat: [wgpu::ComputePipeline; 2],
 }
 
 /// How to get an adapter, for the error when there is none.
@@ -95,11 +107,10 @@ async fn create() -> std::result::Result<Gpu, String> {
         })
     };
     let pipelines = MODELS.iter().map(|(name, _)| pipeline(name, compose(name).expect("listed"), "main")).collect();
-    let renderers = MODELS
-        .iter()
-        .map(|(name, _)| pipeline(name, format!("{}\n{RENDER}", compose(name).expect("listed")), "render"))
-        .collect();
-    Ok(Gpu { info: adapter.get_info(), device, queue, pipelines, renderers })
+    let renderers =
+        MODELS.iter().map(|(name, _)| pipeline(name, compose_render(name).expect("listed"), "render")).collect();
+    let oat = ["light_map", "render_oat"].map(|entry| pipeline("oat", oat::compose(), entry));
+    Ok(Gpu { info: adapter.get_info(), device, queue, pipelines, renderers, oat })
 }
 
 /// A model prepared for the GPU: its shader's parameters (uniform words; the pair count is set per dispatch at
@@ -388,14 +399,8 @@ pub struct Scene {
     pub lights: Vec<[f32; 8]>,
 }
 
-/// Renders each stack under the scene's directional and point lights: (stacks, height, width, 3) float32 radiance.
-/// One dispatch per stack (each with its own tables), all in one submission.
-pub fn render(model: &str, stacks: &[Stack], opts: &Options, scene: &Scene) -> Result<Vec<f32>> {
-    let gpu = gpu()?;
-    let device = &gpu.device;
-    let Some(k) = MODELS.iter().position(|m| m.0 == model) else { return Err(unsupported(model)) };
-    let pipeline = &gpu.renderers[k];
-    let pixels = scene.width * scene.height;
+/// The scene's uniform parameters (RenderParams in scene.wgsl) and light rows, on the device.
+fn scene_buffers(gpu: &Gpu, scene: &Scene) -> (wgpu::Buffer, wgpu::Buffer) {
     let mut words = [0u32; 24];
     words[..5].copy_from_slice(&[
         scene.width as u32,
@@ -409,66 +414,102 @@ pub fn render(model: &str, stacks: &[Stack], opts: &Options, scene: &Scene) -> R
             words[8 + 4 * r + c] = x.to_bits();
         }
     }
-    let init = |label, contents: &[u8], usage| {
-        device.create_buffer_init(&wgpu::util::BufferInitDescriptor { label: Some(label), contents, usage })
-    };
-    let render_params = init("render params", bytemuck::cast_slice(&words), wgpu::BufferUsages::UNIFORM);
     let rows: Vec<f32> = if scene.lights.is_empty() { vec![0.0; 8] } else { scene.lights.concat() };
-    let lights = init("lights", bytemuck::cast_slice(&rows), wgpu::BufferUsages::STORAGE);
-    let size = (4 * 3 * pixels) as u64;
-    let read = device.create_buffer(&wgpu::BufferDescriptor {
-        label: Some("readback"),
-        size: size * stacks.len() as u64,
-        usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
-        mapped_at_creation: false,
-    });
-    let mut encoder = device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: None });
-    let mut keep = Vec::new();
-    for (s, stack) in stacks.iter().enumerate() {
-        let up = upload(gpu, model, stack, opts)?;
-        if up.kernel.channels != 3 {
-            return value_error("render takes RGB stacks (3 channels)");
-        }
-        let params = init("params", bytemuck::cast_slice(&up.kernel.words), wgpu::BufferUsages::UNIFORM);
-        let buffer = |label, size: u64, usage| {
-            device.create_buffer(&wgpu::BufferDescriptor { label: Some(label), size, usage, mapped_at_creation: false })
-        };
-        let scratch = buffer("f", size, wgpu::BufferUsages::STORAGE);
-        let image = buffer("image", size, wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC);
-        // Group 0 as the render entry point uses it: the parameters, the model's arrays and `out` (not `pairs`).
-        let n = up.arrays.len();
-        let model_entries: Vec<wgpu::BindGroupEntry> = std::iter::once((0, &params))
-            .chain(up.arrays.iter().enumerate().map(|(j, b)| (j as u32 + 1, b)))
-            .chain([(n as u32 + 2, &scratch)])
-            .map(|(binding, b)| wgpu::BindGroupEntry { binding, resource: b.as_entire_binding() })
-            .collect();
-        let scene_entries: Vec<wgpu::BindGroupEntry> = [&render_params, &lights, &image]
-            .iter()
-            .enumerate()
-            .map(|(binding, b)| wgpu::BindGroupEntry { binding: binding as u32, resource: b.as_entire_binding() })
-            .collect();
-        let group = |g: u32, entries: &[wgpu::BindGroupEntry]| {
-            let layout = pipeline.get_bind_group_layout(g);
-            device.create_bind_group(&wgpu::BindGroupDescriptor { label: None, layout: &layout, entries })
-        };
-        let (g0, g1) = (group(0, &model_entries), group(1, &scene_entries));
-        {
-            let mut pass =
-                encoder.begin_compute_pass(&wgpu::ComputePassDescriptor { label: None, timestamp_writes: None });
-            pass.set_pipeline(pipeline);
-            pass.set_bind_group(0, &g0, &[]);
-            pass.set_bind_group(1, &g1, &[]);
-            pass.dispatch_workgroups(pixels.div_ceil(64) as u32, 1, 1);
-        }
-        encoder.copy_buffer_to_buffer(&image, 0, &read, s as u64 * size, size);
-        keep.push((up, params, scratch, image));
-    }
+    (
+        init(gpu, "render params", bytemuck::cast_slice(&words), wgpu::BufferUsages::UNIFORM),
+        init(gpu, "lights", bytemuck::cast_slice(&rows), wgpu::BufferUsages::STORAGE),
+    )
+}
+
+fn init(gpu: &Gpu, label: &str, contents: &[u8], usage: wgpu::BufferUsages) -> wgpu::Buffer {
+    gpu.device.create_buffer_init(&wgpu::util::BufferInitDescriptor { label: Some(label), contents, usage })
+}
+
+fn buffer(gpu: &Gpu, label: &str, size: u64, usage: wgpu::BufferUsages) -> wgpu::Buffer {
+    gpu.device.create_buffer(&wgpu::BufferDescriptor { label: Some(label), size, usage, mapped_at_creation: false })
+}
+
+/// A bind group of `pipeline`'s group `g` with the buffers at their bindings.
+fn bind(gpu: &Gpu, pipeline: &wgpu::ComputePipeline, g: u32, buffers: &[(u32, &wgpu::Buffer)]) -> wgpu::BindGroup {
+    let entries: Vec<wgpu::BindGroupEntry> = buffers
+        .iter()
+        .map(|(binding, b)| wgpu::BindGroupEntry { binding: *binding, resource: b.as_entire_binding() })
+        .collect();
+    let layout = pipeline.get_bind_group_layout(g);
+    gpu.device.create_bind_group(&wgpu::BindGroupDescriptor { label: None, layout: &layout, entries: &entries })
+}
+
+/// The workgroups of 64 threads covering `threads`, as (x, y) within the per-dimension limit of 65535 (the
+/// kernels' `thread_index`).
+fn workgroups(threads: usize) -> (u32, u32) {
+    let groups = threads.div_ceil(64).max(1);
+    let x = groups.min(65535);
+    (x as u32, groups.div_ceil(x) as u32)
+}
+
+/// Records one dispatch of `pipeline` over `threads` with bind groups 0 and 1.
+fn record(
+    encoder: &mut wgpu::CommandEncoder,
+    pipeline: &wgpu::ComputePipeline,
+    groups: [&wgpu::BindGroup; 2],
+    threads: usize,
+) {
+    let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor { label: None, timestamp_writes: None });
+    pass.set_pipeline(pipeline);
+    pass.set_bind_group(0, groups[0], &[]);
+    pass.set_bind_group(1, groups[1], &[]);
+    let (x, y) = workgroups(threads);
+    pass.dispatch_workgroups(x, y, 1);
+}
+
+/// Submits `encoder` and reads the float32 buffer `read` back.
+fn finish(gpu: &Gpu, encoder: wgpu::CommandEncoder, read: &wgpu::Buffer) -> Result<Vec<f32>> {
     gpu.queue.submit([encoder.finish()]);
     let slice = read.slice(..);
     slice.map_async(wgpu::MapMode::Read, |_| {});
     wait(gpu)?;
     let view = slice.get_mapped_range().map_err(|e| Error::Value(format!("GPU: {e}")))?;
     Ok(bytemuck::cast_slice(&view).to_vec())
+}
+
+/// Renders each stack under the scene's directional and point lights: (stacks, height, width, 3) float32 radiance.
+/// One dispatch per stack (each with its own tables), all in one submission.
+pub fn render(model: &str, stacks: &[Stack], opts: &Options, scene: &Scene) -> Result<Vec<f32>> {
+    let gpu = gpu()?;
+    let Some(k) = MODELS.iter().position(|m| m.0 == model) else { return Err(unsupported(model)) };
+    let pipeline = &gpu.renderers[k];
+    let pixels = scene.width * scene.height;
+    let (render_params, lights) = scene_buffers(gpu, scene);
+    let size = (4 * 3 * pixels) as u64;
+    let read = buffer(
+        gpu,
+        "readback",
+        size * stacks.len() as u64,
+        wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+    );
+    let mut encoder = gpu.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: None });
+    let mut keep = Vec::new();
+    for (s, stack) in stacks.iter().enumerate() {
+        let up = upload(gpu, model, stack, opts)?;
+        if up.kernel.channels != 3 {
+            return value_error("render takes RGB stacks (3 channels)");
+        }
+        let params = init(gpu, "params", bytemuck::cast_slice(&up.kernel.words), wgpu::BufferUsages::UNIFORM);
+        let scratch = buffer(gpu, "f", size, wgpu::BufferUsages::STORAGE);
+        let image = buffer(gpu, "image", size, wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC);
+        // Group 0 as the render entry point uses it: the parameters, the model's arrays and `out` (not `pairs`).
+        let n = up.arrays.len() as u32;
+        let model_buffers: Vec<(u32, &wgpu::Buffer)> = std::iter::once((0, &params))
+            .chain(up.arrays.iter().enumerate().map(|(j, b)| (j as u32 + 1, b)))
+            .chain([(n + 2, &scratch)])
+            .collect();
+        let g0 = bind(gpu, pipeline, 0, &model_buffers);
+        let g1 = bind(gpu, pipeline, 1, &[(0, &render_params), (1, &lights), (2, &image)]);
+        record(&mut encoder, pipeline, [&g0, &g1], pixels);
+        encoder.copy_buffer_to_buffer(&image, 0, &read, s as u64 * size, size);
+        keep.push((up, params, scratch, image));
+    }
+    finish(gpu, encoder, &read)
 }
 
 #[cfg(test)]
@@ -478,10 +519,10 @@ mod tests {
     #[test]
     fn every_shader_is_valid_wgsl() {
         // naga parses and validates each composed module as wgpu would, without a GPU.
-        let sources = MODELS.iter().flat_map(|(name, _)| {
-            let model = compose(name).unwrap();
-            [(*name, model.clone()), (*name, format!("{model}\n{RENDER}"))]
-        });
+        let sources = MODELS
+            .iter()
+            .flat_map(|(name, _)| [(*name, compose(name).unwrap()), (*name, compose_render(name).unwrap())])
+            .chain([("oat", oat::compose())]);
         for (name, src) in sources {
             let module = wgpu::naga::front::wgsl::parse_str(&src)
                 .unwrap_or_else(|e| panic!("{name}: {}", e.emit_to_string(&src)));

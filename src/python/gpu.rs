@@ -3,6 +3,7 @@
 
 use super::api::{parse_options, parse_stack};
 use super::arrays::{batch, Kind};
+use super::oat::OatMaterial;
 use crate::gpu;
 use crate::render::{pinhole, Light};
 use numpy::{PyArrayDyn, PyArrayMethods, PyUntypedArrayMethods};
@@ -110,6 +111,19 @@ pub fn render_gpu<'py>(
         let (layers, ext_ior): (Bound<'py, PyList>, f64) = item.extract()?;
         parsed.push(parse_stack(&layers, ext_ior)?);
     }
+    let scene = scene(shape, camera, lights, width, height)?;
+    let image = py.detach(|| gpu::render(model, &parsed, &opts, &scene))?;
+    numpy::PyArray1::from_vec(py, image).reshape([parsed.len(), height, width, 3]).map(|a| a.into_any())
+}
+
+/// The GPU's scene: "sphere" or "plane", the camera (None: orthographic) and the lights (kind, vector, rgb).
+fn scene(
+    shape: &str,
+    camera: Option<([f64; 3], [f64; 3], f64)>,
+    lights: Vec<(String, [f64; 3], [f64; 3])>,
+    width: usize,
+    height: usize,
+) -> PyResult<gpu::Scene> {
     let shape = match shape {
         "sphere" => 0,
         "plane" => 1,
@@ -132,7 +146,23 @@ pub fn render_gpu<'py>(
             .map(|x| x as f32),
         );
     }
-    let scene = gpu::Scene { width, height, shape, camera, lights: rows };
-    let image = py.detach(|| gpu::render(model, &parsed, &opts, &scene))?;
-    numpy::PyArray1::from_vec(py, image).reshape([parsed.len(), height, width, 3]).map(|a| a.into_any())
+    Ok(gpu::Scene { width, height, shape, camera, lights: rows })
+}
+
+/// Renders Oat materials on the GPU: (materials, height, width, 3) float32, the arguments as for render_gpu.
+#[pyfunction]
+#[pyo3(signature = (materials, shape, camera, lights, width, height))]
+pub fn render_oat_gpu<'py>(
+    py: Python<'py>,
+    materials: Vec<Py<OatMaterial>>,
+    shape: &str,
+    camera: Option<([f64; 3], [f64; 3], f64)>,
+    lights: Vec<(String, [f64; 3], [f64; 3])>,
+    width: usize,
+    height: usize,
+) -> PyResult<Bound<'py, PyAny>> {
+    let prepared: Vec<_> = materials.iter().map(|m| m.get().0.clone()).collect();
+    let scene = scene(shape, camera, lights, width, height)?;
+    let image = py.detach(|| gpu::oat::render(&prepared, &scene))?;
+    numpy::PyArray1::from_vec(py, image).reshape([prepared.len(), height, width, 3]).map(|a| a.into_any())
 }

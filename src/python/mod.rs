@@ -51,6 +51,7 @@ fn _lamina(m: &Bound<'_, PyModule>) -> PyResult<()> {
         m.add_function(wrap_pyfunction!(gpu::eval_gpu, m)?)?;
         m.add_function(wrap_pyfunction!(gpu::gpu_resident_seconds, m)?)?;
         m.add_function(wrap_pyfunction!(gpu::render_gpu, m)?)?;
+        m.add_function(wrap_pyfunction!(gpu::render_oat_gpu, m)?)?;
     }
     m.add_function(wrap_pyfunction!(render::render, m)?)?;
     m.add_function(wrap_pyfunction!(oat::oat_parallax, m)?)?;

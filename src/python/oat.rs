@@ -110,7 +110,7 @@ type InnerArrays<'py> = (PyReadonlyArray3<'py, f64>, Option<PyReadonlyArray3<'py
 /// An Oat material, prepared once for a render: its textures (h, w, c float64), inner layers as (albedo, opacity or
 /// None, depth (h, w, 1)), and its light map for variant "full".
 #[pyclass(frozen)]
-pub struct OatMaterial(Arc<Prepared>);
+pub struct OatMaterial(pub(crate) Arc<Prepared>);
 
 #[pymethods]
 impl OatMaterial {
