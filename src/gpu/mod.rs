@@ -327,6 +327,19 @@ fn dispatch(gpu: &Gpu, pipeline: &wgpu::ComputePipeline, b: &Batch, read: Option
     gpu.queue.submit([encoder.finish()]);
 }
 
+/// Runs `work` with the device's validation and out-of-memory errors caught as a ValueError-like Error instead of
+/// wgpu's default handler, which panics (nothing may panic across the FFI boundary).
+fn scoped<T>(gpu: &Gpu, work: impl FnOnce() -> Result<T>) -> Result<T> {
+    let memory = gpu.device.push_error_scope(wgpu::ErrorFilter::OutOfMemory);
+    let validation = gpu.device.push_error_scope(wgpu::ErrorFilter::Validation);
+    let out = work();
+    let errors = [pollster::block_on(validation.pop()), pollster::block_on(memory.pop())];
+    match errors.into_iter().flatten().next() {
+        Some(e) => Err(Error::Value(format!("GPU: {e}"))),
+        None => out,
+    }
+}
+
 fn wait(gpu: &Gpu) -> Result<()> {
     gpu.device.poll(wgpu::PollType::wait_indefinitely()).map(|_| ()).map_err(|e| Error::Value(format!("GPU: {e}")))
 }
@@ -352,6 +365,11 @@ fn prepared(
 
 /// f of `model` for n pairs given as float32 rows (wi.xyz, wo.xyz), unit directions: n·channels float32 values.
 pub fn eval(model: &str, stack: &Stack, opts: &Options, pairs: &[f32]) -> Result<Vec<f32>> {
+    let gpu = gpu()?;
+    scoped(gpu, || eval_scoped(model, stack, opts, pairs))
+}
+
+fn eval_scoped(model: &str, stack: &Stack, opts: &Options, pairs: &[f32]) -> Result<Vec<f32>> {
     let (gpu, up, pipeline, chunk) = prepared(model, stack, opts, pairs)?;
     let c = up.kernel.channels;
     let mut out = vec![0f32; pairs.len() / 6 * c];
@@ -376,16 +394,18 @@ pub fn eval(model: &str, stack: &Stack, opts: &Options, pairs: &[f32]) -> Result
 /// Seconds per evaluation of all the pairs with inputs and outputs resident on the device (uploaded once, nothing
 /// read back): the mean over `repeats` rounds after a warm-up round. For benchmarks.
 pub fn resident_seconds(model: &str, stack: &Stack, opts: &Options, pairs: &[f32], repeats: usize) -> Result<f64> {
-    let (gpu, up, pipeline, chunk) = prepared(model, stack, opts, pairs)?;
-    let batches: Vec<Batch> = pairs.chunks(6 * chunk).map(|rows| batch(gpu, &up, pipeline, rows)).collect();
-    batches.iter().for_each(|b| dispatch(gpu, pipeline, b, None));
-    wait(gpu)?;
-    let start = std::time::Instant::now();
-    for _ in 0..repeats.max(1) {
+    scoped(gpu()?, || {
+        let (gpu, up, pipeline, chunk) = prepared(model, stack, opts, pairs)?;
+        let batches: Vec<Batch> = pairs.chunks(6 * chunk).map(|rows| batch(gpu, &up, pipeline, rows)).collect();
         batches.iter().for_each(|b| dispatch(gpu, pipeline, b, None));
         wait(gpu)?;
-    }
-    Ok(start.elapsed().as_secs_f64() / repeats.max(1) as f64)
+        let start = std::time::Instant::now();
+        for _ in 0..repeats.max(1) {
+            batches.iter().for_each(|b| dispatch(gpu, pipeline, b, None));
+            wait(gpu)?;
+        }
+        Ok(start.elapsed().as_secs_f64() / repeats.max(1) as f64)
+    })
 }
 
 /// A scene for the GPU renderer: the image size, the shape (0 sphere, 1 plane), the perspective camera's pinhole and
@@ -476,6 +496,10 @@ fn finish(gpu: &Gpu, encoder: wgpu::CommandEncoder, read: &wgpu::Buffer) -> Resu
 /// One dispatch per stack (each with its own tables), all in one submission.
 pub fn render(model: &str, stacks: &[Stack], opts: &Options, scene: &Scene) -> Result<Vec<f32>> {
     let gpu = gpu()?;
+    scoped(gpu, || render_scoped(gpu, model, stacks, opts, scene))
+}
+
+fn render_scoped(gpu: &'static Gpu, model: &str, stacks: &[Stack], opts: &Options, scene: &Scene) -> Result<Vec<f32>> {
     let Some(k) = MODELS.iter().position(|m| m.0 == model) else { return Err(unsupported(model)) };
     let pipeline = &gpu.renderers[k];
     let pixels = scene.width * scene.height;

@@ -2,8 +2,8 @@
 //! lights the texture-space light map over the shape's uv chart (variant "full"), then one that shades every pixel;
 //! all materials in one submission. The sphere and the plane, under directional and point lights, in float32.
 
-use super::{bind, buffer, finish, gpu, init, record, scene_buffers, Scene, OPTICS, SCENE};
-use crate::error::Result;
+use super::{bind, buffer, finish, gpu, init, record, scene_buffers, scoped, Gpu, Scene, OPTICS, SCENE};
+use crate::error::{value_error, Result};
 use crate::render::oat::{Material, Prepared, Variant};
 use crate::render::Texture;
 use std::sync::Arc;
@@ -28,7 +28,7 @@ fn words(m: &Material) -> [u32; 8] {
 /// The material's textures in one float32 array and their (offset, width, height, comps) rows, in oat.wgsl's order:
 /// outer albedo, opacity and normal, the light map (the normal map's size for "full", else 1 x 1, unused), then per
 /// inner layer its albedo, opacity (0 comps for the deepest) and depth.
-fn pack(m: &Material) -> (Vec<[u32; 4]>, Vec<f32>) {
+fn pack(m: &Material) -> Packed {
     let (mut rows, mut data) = (Vec::new(), Vec::new());
     let mut push = |t: Option<&Texture>, size: [usize; 3]| {
         rows.push([data.len() as u32, size[0] as u32, size[1] as u32, size[2] as u32]);
@@ -58,6 +58,22 @@ fn pack(m: &Material) -> (Vec<[u32; 4]>, Vec<f32>) {
 /// device, whatever `Prepared` holds.
 pub fn render(materials: &[Arc<Prepared>], scene: &Scene) -> Result<Vec<f32>> {
     let gpu = gpu()?;
+    let limit = gpu.device.limits().max_storage_buffer_binding_size as usize;
+    let packed: Vec<_> = materials.iter().map(|m| pack(&m.material)).collect();
+    if let Some(bytes) = packed.iter().map(|(_, data)| 4 * data.len()).find(|&b| b > limit) {
+        return value_error(format!(
+            "an Oat material's textures take {} MiB on the GPU, over the adapter's storage-buffer limit of {} MiB: use \
+             smaller textures or device='cpu'",
+            bytes >> 20,
+            limit >> 20
+        ));
+    }
+    scoped(gpu, || render_scoped(gpu, materials, &packed, scene))
+}
+
+type Packed = (Vec<[u32; 4]>, Vec<f32>);
+
+fn render_scoped(gpu: &'static Gpu, materials: &[Arc<Prepared>], packed: &[Packed], scene: &Scene) -> Result<Vec<f32>> {
     let [lighting, shading] = &gpu.oat;
     let pixels = scene.width * scene.height;
     let (render_params, lights) = scene_buffers(gpu, scene);
@@ -66,12 +82,11 @@ pub fn render(materials: &[Arc<Prepared>], scene: &Scene) -> Result<Vec<f32>> {
     let read = buffer(gpu, "readback", size * materials.len() as u64, usage);
     let mut encoder = gpu.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: None });
     let mut keep = Vec::new();
-    for (s, prepared) in materials.iter().enumerate() {
+    for (s, (prepared, (rows, data))) in materials.iter().zip(packed).enumerate() {
         let m = &prepared.material;
-        let (rows, data) = pack(m);
         let params = init(gpu, "oat params", bytemuck::cast_slice(&words(m)), wgpu::BufferUsages::UNIFORM);
-        let textures = init(gpu, "textures", bytemuck::cast_slice(&rows), wgpu::BufferUsages::STORAGE);
-        let texels = init(gpu, "texels", bytemuck::cast_slice(&data), wgpu::BufferUsages::STORAGE);
+        let textures = init(gpu, "textures", bytemuck::cast_slice(rows), wgpu::BufferUsages::STORAGE);
+        let texels = init(gpu, "texels", bytemuck::cast_slice(data), wgpu::BufferUsages::STORAGE);
         let image = buffer(gpu, "image", size, wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC);
         let material = [(0, &params), (1, &textures), (2, &texels)];
         if m.variant == Variant::Full {
