@@ -181,6 +181,7 @@ def test_variants_agree_on_the_organic_sphere(device):
 
 
 POINT = lamina.PointLight((1.5, 1.0, 2.5), (6.0, 5.0, 4.0))
+MESH = _uv_sphere()
 PERSPECTIVE = ((0.5, 0.8, 3.0), (0.0, 0.0, 0.0), 45.0)
 
 
@@ -192,9 +193,11 @@ def test_gpu_renders_what_the_cpu_renders(variant, shadowing, camera):
     to the mean radiance. The plane, whose uv is affine in the hit point: mean |gpu − cpu| ≤ 1e-5 and 99th
     percentile ≤ 1e-4 (measured ≤ 1.1e-6 and ≤ 6e-6: float32). The sphere: ≤ 1e-3 and ≤ 1e-2 (measured ≤ 4.4e-4
     and ≤ 4.6e-3): its float32 uv (atan2, acos) moves each lookup by ~1e-5 texel, which the bumpy normal map amplifies
-    (docs/conventions.md)."""
+    (docs/conventions.md). A latitude-longitude sphere mesh, rasterized on the GPU through the camera and in uv
+    space (the light map, dilated), traced on the CPU: ≤ 1e-3 and ≤ 1e-4 (measured ≤ 1.2e-4 and ≤ 1.4e-5; the mean
+    carries the few silhouette and seam pixels where rasterization and ray casting pick different triangles)."""
     m = oat.Material(**oat.organic_textures(256, seed=1), thickness=6.0, variant=variant, shadowing=shadowing)
-    for shape, (mean_tol, p99_tol) in (("plane", (1e-5, 1e-4)), ("sphere", (1e-3, 1e-2))):
+    for shape, (mean_tol, p99_tol) in (("plane", (1e-5, 1e-4)), ("sphere", (1e-3, 1e-2)), (MESH, (1e-3, 1e-4))):
         kw = dict(material=m, shape=shape, width=64, height=64, lights=[LIGHT, POINT], camera=camera)
         cpu, gpu = lamina.render(device="cpu", **kw), lamina.render(device="gpu", **kw)
         assert gpu.shape == cpu.shape == (64, 64, 3) and np.all(np.isfinite(gpu))
@@ -247,5 +250,3 @@ def test_bad_input():
         lamina.render(lamina.materials.suite("three-layer"), material=m)
     with pytest.raises(TypeError, match="lights"):
         lamina.render(material=m, lights=[lamina.EnvironmentLight("sky")])
-    with pytest.raises(ValueError, match="sphere or the plane"):
-        lamina.render(material=m, device="gpu", shape=_uv_sphere())

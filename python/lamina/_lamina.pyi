@@ -177,6 +177,7 @@ class OatMaterial:
         shadowing: bool,
         border: str,
         texel: tuple[float, float],
+        dilate: int,
         light_map: _Array | None,
     ) -> OatMaterial: ...
 
@@ -221,7 +222,7 @@ def render_gpu(
 ) -> _Array: ...
 def render_oat_gpu(
     materials: list[OatMaterial],
-    shape: str,
+    shape: str | tuple,
     camera: tuple[tuple[float, float, float], tuple[float, float, float], float] | None,
     lights: list[tuple[str, tuple[float, float, float], tuple[float, float, float]]],
     width: int,

@@ -145,6 +145,7 @@ class Material:
             self.shadowing,
             self.border,
             self.texel,
+            self.dilate,
             light,
         )
 

@@ -246,17 +246,12 @@ def _render_oat(material, shape, width, height, lights, device, camera, progress
         if not isinstance(m, OatMaterial):
             raise TypeError(f"material[{i}] must be a lamina.oat.Material, got {type(m).__name__}")
     shape, camera = _scene(shape, width, height, camera)
-    if device == "gpu" and not isinstance(shape, str):
-        raise ValueError(
-            "device='gpu' renders Oat materials on the sphere or the plane; meshes run on the CPU: use "
-            "device='cpu' or 'auto'"
-        )
     lights = [DirectionalLight((0.5, 0.6, 1.0), (3.0, 3.0, 3.0))] if lights is None else list(lights)
     for i, light in enumerate(lights):
         if not isinstance(light, (DirectionalLight, PointLight)):
             raise TypeError(f"lights[{i}]: Oat materials take DirectionalLight and PointLight, got {light!r}")
     specs = [light._spec() for light in lights]
-    if isinstance(shape, str) and _gpu.use_gpu(device, None):  # the GPU lights its own light maps
+    if _gpu.use_gpu(device, None):  # the GPU lights its own light maps
         prepared = [m._prepared(shape, specs, light_map=False) for m in materials]
         out = _lamina.render_oat_gpu(prepared, shape, camera, specs, width, height)
         return out[0] if single else out
@@ -305,7 +300,7 @@ def render(
     ValueError); "auto" takes a hardware GPU for such scenes, else the CPU.
 
     material: instead of stacks, a lamina.oat.Material or a list of them (Oat 2006's gooey layers, lit by the
-    directional and point lights; on the GPU for the sphere and the plane, as for stacks)."""
+    directional and point lights; on the GPU for every shape)."""
     if device not in _gpu.DEVICES:
         raise ValueError(f"device must be one of {_gpu.DEVICES}, got {device!r}")
     if material is not None:

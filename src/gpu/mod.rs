@@ -5,8 +5,9 @@
 //!
 //! Models on the GPU so far: `microfacet` (every option) and `belcour` (tabulated, every other option). A model's
 //! tables are uploaded once per stack and options and kept (`uploaded`). Inputs of any length are split into
-//! dispatches of at most CHUNK pairs. The renderer (`render`, shaders/scene.wgsl and render.wgsl) and Oat 2006's
-//! gooey layers (`oat`, shaders/oat.wgsl) render the sphere or the plane under directional and point lights.
+//! dispatches of at most CHUNK pairs. The renderer (`render`, shaders/scene.wgsl and render.wgsl) renders stacks on
+//! the sphere or the plane under directional and point lights; Oat 2006's gooey layers (`oat`, shaders/oat.wgsl)
+//! render there and on meshes (shaders/mesh.wgsl, rasterized by raster.wgsl). Device errors come back as values.
 
 pub mod oat;
 
@@ -24,6 +25,10 @@ pub const OPTICS: &str = include_str!("shaders/optics.wgsl");
 pub const SCENE: &str = include_str!("shaders/scene.wgsl");
 /// The renderer's deterministic kernel, composed after a model and SCENE.
 pub const RENDER: &str = include_str!("shaders/render.wgsl");
+/// Triangle meshes, composed after SCENE.
+pub const MESH: &str = include_str!("shaders/mesh.wgsl");
+/// The mesh's rasterization into visibility targets, composed after MESH.
+pub const RASTER: &str = include_str!("shaders/raster.wgsl");
 /// The models' shaders, by model name: each is composed after OPTICS.
 pub const MODELS: &[(&str, &str)] =
     &[("microfacet", include_str!("shaders/microfacet.wgsl")), ("belcour", include_str!("shaders/belcour.wgsl"))];
@@ -41,20 +46,70 @@ pub fn supports(model: &str) -> bool {
 /// Pairs per dispatch: 2^21 (32768 workgroups of 64, within every adapter's dispatch limit).
 const CHUNK: usize = 1 << 21;
 
+/// The rasterization shader: the primitives, the scene, the mesh and raster.wgsl.
+pub fn compose_raster() -> String {
+    format!("{OPTICS}\n{SCENE}\n{MESH}\n{RASTER}")
+}
+
 /// A model's render shader: the model, the scene and the render kernel.
 pub fn compose_render(model: &str) -> Option<String> {
     compose(model).map(|m| format!("{m}\n{SCENE}\n{RENDER}"))
 }
 
-/// The adapter, its device, per model (in the order of MODELS) its eval and render pipelines, and Oat's light-map
-/// and render pipelines.
+/// The adapter, its device, per model (in the order of MODELS) its eval and render pipelines, Oat's kernels (in the
+/// order of oat::KERNELS) and the mesh's rasterization in uv space and through the camera.
 pub struct Gpu {
     pub info: wgpu::AdapterInfo,
     device: wgpu::Device,
     queue: wgpu::Queue,
     pipelines: Vec<wgpu::ComputePipeline>,
     renderers: Vec<wgpu::ComputePipeline>,
-    oat: [wgpu::ComputePipeline; 2],
+    oat: Vec<wgpu::ComputePipeline>,
+    raster: [wgpu::RenderPipeline; 2],
+}
+
+/// The visibility targets' format: (triangle, b1, b2, covered) per texel.
+const VISIBILITY: wgpu::TextureFormat = wgpu::TextureFormat::Rgba32Float;
+const DEPTH: wgpu::TextureFormat = wgpu::TextureFormat::Depth32Float;
+
+/// The rasterization pipeline of `entry` (raster.wgsl): no culling, the nearest fragment by depth where `depth`.
+fn raster_pipeline(
+    device: &wgpu::Device,
+    module: &wgpu::ShaderModule,
+    entry: &str,
+    depth: bool,
+) -> wgpu::RenderPipeline {
+    device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+        label: Some(entry),
+        layout: None,
+        vertex: wgpu::VertexState {
+            module,
+            entry_point: Some(entry),
+            compilation_options: Default::default(),
+            buffers: &[],
+        },
+        primitive: wgpu::PrimitiveState::default(),
+        depth_stencil: depth.then(|| wgpu::DepthStencilState {
+            format: DEPTH,
+            depth_write_enabled: Some(true),
+            depth_compare: Some(wgpu::CompareFunction::Less),
+            stencil: Default::default(),
+            bias: Default::default(),
+        }),
+        multisample: Default::default(),
+        fragment: Some(wgpu::FragmentState {
+            module,
+            entry_point: Some("visibility"),
+            compilation_options: Default::default(),
+            targets: &[Some(wgpu::ColorTargetState {
+                format: VISIBILITY,
+                blend: None,
+                write_mask: wgpu::ColorWrites::ALL,
+            })],
+        }),
+        multiview_mask: None,
+        cache: None,
+    })
 }
 
 /// How to get an adapter, for the error when there is none.
@@ -109,8 +164,13 @@ async fn create() -> std::result::Result<Gpu, String> {
     let pipelines = MODELS.iter().map(|(name, _)| pipeline(name, compose(name).expect("listed"), "main")).collect();
     let renderers =
         MODELS.iter().map(|(name, _)| pipeline(name, compose_render(name).expect("listed"), "render")).collect();
-    let oat = ["light_map", "render_oat"].map(|entry| pipeline("oat", oat::compose(), entry));
-    Ok(Gpu { info: adapter.get_info(), device, queue, pipelines, renderers, oat })
+    let oat = oat::KERNELS.iter().map(|entry| pipeline("oat", oat::compose(), entry)).collect();
+    let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
+        label: Some("raster"),
+        source: wgpu::ShaderSource::Wgsl(compose_raster().into()),
+    });
+    let raster = [("uv_vertex", false), ("camera_vertex", true)].map(|(e, d)| raster_pipeline(&device, &module, e, d));
+    Ok(Gpu { info: adapter.get_info(), device, queue, pipelines, renderers, oat, raster })
 }
 
 /// A model prepared for the GPU: its shader's parameters (uniform words; the pair count is set per dispatch at
@@ -408,13 +468,14 @@ pub fn resident_seconds(model: &str, stack: &Stack, opts: &Options, pairs: &[f32
     })
 }
 
-/// A scene for the GPU renderer: the image size, the shape (0 sphere, 1 plane), the perspective camera's pinhole and
-/// its forward, right and up vectors (scaled as in render.wgsl; None: orthographic), and per light two rows (kind,
-/// xyz), (rgb, 0).
+/// A scene for the GPU renderer: the image size, the shape (0 sphere, 1 plane, 2 the mesh), the mesh's arrays
+/// (Mesh::gpu_arrays), the perspective camera's pinhole and its forward, right and up vectors (scaled as in
+/// scene.wgsl; None: orthographic), and per light two rows (kind, xyz), (rgb, 0).
 pub struct Scene {
     pub width: usize,
     pub height: usize,
     pub shape: u32,
+    pub mesh: Option<(Vec<f32>, Vec<u32>)>,
     pub camera: Option<[[f32; 3]; 4]>,
     pub lights: Vec<[f32; 8]>,
 }
@@ -501,6 +562,9 @@ pub fn render(model: &str, stacks: &[Stack], opts: &Options, scene: &Scene) -> R
 
 fn render_scoped(gpu: &'static Gpu, model: &str, stacks: &[Stack], opts: &Options, scene: &Scene) -> Result<Vec<f32>> {
     let Some(k) = MODELS.iter().position(|m| m.0 == model) else { return Err(unsupported(model)) };
+    if scene.mesh.is_some() {
+        return value_error("device='gpu' renders stacks on the sphere or the plane; meshes run on the CPU");
+    }
     let pipeline = &gpu.renderers[k];
     let pixels = scene.width * scene.height;
     let (render_params, lights) = scene_buffers(gpu, scene);
@@ -546,7 +610,7 @@ mod tests {
         let sources = MODELS
             .iter()
             .flat_map(|(name, _)| [(*name, compose(name).unwrap()), (*name, compose_render(name).unwrap())])
-            .chain([("oat", oat::compose())]);
+            .chain([("oat", oat::compose()), ("raster", compose_raster())]);
         for (name, src) in sources {
             let module = wgpu::naga::front::wgsl::parse_str(&src)
                 .unwrap_or_else(|e| panic!("{name}: {}", e.emit_to_string(&src)));

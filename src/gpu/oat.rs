@@ -1,17 +1,33 @@
-//! Oat 2006's gooey layers on the GPU (shaders/oat.wgsl, mirroring render/oat.rs): per material, one dispatch that
-//! lights the texture-space light map over the shape's uv chart (variant "full"), then one that shades every pixel;
-//! all materials in one submission. The sphere and the plane, under directional and point lights, in float32.
+//! Oat 2006's gooey layers on the GPU (shaders/oat.wgsl, mirroring render/oat.rs), under directional and point
+//! lights, in float32; all materials in one submission. On the sphere and the plane, per material one dispatch
+//! lights the texture-space light map over the shape's uv chart (variant "full") and one shades every pixel. On a
+//! mesh (shaders/mesh.wgsl, raster.wgsl), a render pass rasterizes it through the camera into a visibility target
+//! once; per material, a render pass with the uvs as positions rasterizes it in uv space, a dispatch lights the
+//! covered texels, `dilate` dispatches dilate the islands and one stores the light map, before the shading
+//! dispatch reads the surface back from the visibility target.
 
-use super::{bind, buffer, finish, gpu, init, record, scene_buffers, scoped, Gpu, Scene, OPTICS, SCENE};
+use super::{
+    buffer, finish, gpu, init, scene_buffers, scoped, workgroups, Gpu, Scene, DEPTH, MESH, OPTICS, SCENE, VISIBILITY,
+};
 use crate::error::{value_error, Result};
 use crate::render::oat::{Material, Prepared, Variant};
 use crate::render::Texture;
 use std::sync::Arc;
 
-/// The shader: the primitives, the scene, then Oat's kernels.
+/// The shader: the primitives, the scene, the mesh, then Oat's kernels.
 pub fn compose() -> String {
-    format!("{OPTICS}\n{SCENE}\n{}", include_str!("shaders/oat.wgsl"))
+    format!("{OPTICS}\n{SCENE}\n{MESH}\n{}", include_str!("shaders/oat.wgsl"))
 }
+
+/// Oat's kernels, in the order of Gpu::oat.
+pub const KERNELS: [&str; 6] =
+    ["light_map", "render_oat", "light_map_mesh", "dilate", "store_light_map", "render_oat_mesh"];
+const LIGHT_MAP: usize = 0;
+const RENDER: usize = 1;
+const LIGHT_MAP_MESH: usize = 2;
+const DILATE: usize = 3;
+const STORE: usize = 4;
+const RENDER_MESH: usize = 5;
 
 /// The material's parameters in the layout of `OatParams`.
 fn words(m: &Material) -> [u32; 8] {
@@ -73,32 +89,209 @@ pub fn render(materials: &[Arc<Prepared>], scene: &Scene) -> Result<Vec<f32>> {
 
 type Packed = (Vec<[u32; 4]>, Vec<f32>);
 
+/// A resource of a bind group.
+#[derive(Clone, Copy)]
+enum Res<'a> {
+    Buffer(&'a wgpu::Buffer),
+    View(&'a wgpu::TextureView),
+}
+
+/// A bind group of `layout_of`'s group `g` with the resources at their bindings (none: an unused group).
+fn group(gpu: &Gpu, layout_of: &wgpu::ComputePipeline, g: u32, resources: &[(u32, Res)]) -> wgpu::BindGroup {
+    let entries: Vec<wgpu::BindGroupEntry> = resources
+        .iter()
+        .map(|(binding, r)| wgpu::BindGroupEntry {
+            binding: *binding,
+            resource: match r {
+                Res::Buffer(b) => b.as_entire_binding(),
+                Res::View(v) => wgpu::BindingResource::TextureView(v),
+            },
+        })
+        .collect();
+    let layout = layout_of.get_bind_group_layout(g);
+    gpu.device.create_bind_group(&wgpu::BindGroupDescriptor { label: None, layout: &layout, entries: &entries })
+}
+
+/// Records one dispatch of `pipeline` over `threads` with its bind groups 0, 1 and 2.
+fn dispatch(
+    encoder: &mut wgpu::CommandEncoder,
+    pipeline: &wgpu::ComputePipeline,
+    groups: &[&wgpu::BindGroup],
+    threads: usize,
+) {
+    let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor { label: None, timestamp_writes: None });
+    pass.set_pipeline(pipeline);
+    for (g, bind) in groups.iter().enumerate() {
+        pass.set_bind_group(g as u32, *bind, &[]);
+    }
+    let (x, y) = workgroups(threads);
+    pass.dispatch_workgroups(x, y, 1);
+}
+
+/// A visibility target of `size` texels (and a depth buffer with `depth`), cleared, and the mesh rasterized into it
+/// by `pipeline` with the mesh's bind group (and the scene's, for the camera).
+fn rasterize(
+    gpu: &Gpu,
+    encoder: &mut wgpu::CommandEncoder,
+    pipeline: &wgpu::RenderPipeline,
+    size: [usize; 2],
+    mesh: [&wgpu::Buffer; 2],
+    triangles: usize,
+    scene: Option<&wgpu::Buffer>,
+) -> wgpu::TextureView {
+    let texture = |format, usage| {
+        gpu.device.create_texture(&wgpu::TextureDescriptor {
+            label: Some("visibility"),
+            size: wgpu::Extent3d { width: size[0] as u32, height: size[1] as u32, depth_or_array_layers: 1 },
+            mip_level_count: 1,
+            sample_count: 1,
+            dimension: wgpu::TextureDimension::D2,
+            format,
+            usage,
+            view_formats: &[],
+        })
+    };
+    let target = texture(VISIBILITY, wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::TEXTURE_BINDING);
+    let view = target.create_view(&Default::default());
+    let depth = scene.map(|_| texture(DEPTH, wgpu::TextureUsages::RENDER_ATTACHMENT).create_view(&Default::default()));
+    let bind = |g: u32, entries: &[(u32, &wgpu::Buffer)]| {
+        let entries: Vec<wgpu::BindGroupEntry> = entries
+            .iter()
+            .map(|(binding, b)| wgpu::BindGroupEntry { binding: *binding, resource: b.as_entire_binding() })
+            .collect();
+        let layout = pipeline.get_bind_group_layout(g);
+        gpu.device.create_bind_group(&wgpu::BindGroupDescriptor { label: None, layout: &layout, entries: &entries })
+    };
+    let groups = [
+        bind(0, &[]),
+        scene.map_or_else(|| bind(1, &[]), |rp| bind(1, &[(0, rp)])),
+        bind(2, &[(0, mesh[0]), (1, mesh[1])]),
+    ];
+    let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
+        label: Some("rasterize"),
+        color_attachments: &[Some(wgpu::RenderPassColorAttachment {
+            view: &view,
+            depth_slice: None,
+            resolve_target: None,
+            ops: wgpu::Operations { load: wgpu::LoadOp::Clear(wgpu::Color::TRANSPARENT), store: wgpu::StoreOp::Store },
+        })],
+        depth_stencil_attachment: depth.as_ref().map(|view| wgpu::RenderPassDepthStencilAttachment {
+            view,
+            depth_ops: Some(wgpu::Operations { load: wgpu::LoadOp::Clear(1.0), store: wgpu::StoreOp::Store }),
+            stencil_ops: None,
+        }),
+        timestamp_writes: None,
+        occlusion_query_set: None,
+        multiview_mask: None,
+    });
+    pass.set_pipeline(pipeline);
+    for (g, b) in groups.iter().enumerate() {
+        pass.set_bind_group(g as u32, b, &[]);
+    }
+    pass.draw(0..3 * triangles as u32, 0..1);
+    drop(pass);
+    view
+}
+
 fn render_scoped(gpu: &'static Gpu, materials: &[Arc<Prepared>], packed: &[Packed], scene: &Scene) -> Result<Vec<f32>> {
-    let [lighting, shading] = &gpu.oat;
+    let k = &gpu.oat;
     let pixels = scene.width * scene.height;
     let (render_params, lights) = scene_buffers(gpu, scene);
     let size = (4 * 3 * pixels) as u64;
     let usage = wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST;
     let read = buffer(gpu, "readback", size * materials.len() as u64, usage);
     let mut encoder = gpu.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: None });
-    let mut keep = Vec::new();
+    let mesh = scene.mesh.as_ref().map(|(rows, tris)| {
+        let vertices = init(gpu, "vertices", bytemuck::cast_slice(rows), wgpu::BufferUsages::STORAGE);
+        let triangles = init(gpu, "triangles", bytemuck::cast_slice(tris), wgpu::BufferUsages::STORAGE);
+        (vertices, triangles, tris.len() / 3)
+    });
+    let seen = mesh.as_ref().map(|(v, t, n)| {
+        rasterize(gpu, &mut encoder, &gpu.raster[1], [scene.width, scene.height], [v, t], *n, Some(&render_params))
+    });
+    let (mut buffers, mut views) = (Vec::new(), Vec::new());
     for (s, (prepared, (rows, data))) in materials.iter().zip(packed).enumerate() {
         let m = &prepared.material;
         let params = init(gpu, "oat params", bytemuck::cast_slice(&words(m)), wgpu::BufferUsages::UNIFORM);
         let textures = init(gpu, "textures", bytemuck::cast_slice(rows), wgpu::BufferUsages::STORAGE);
         let texels = init(gpu, "texels", bytemuck::cast_slice(data), wgpu::BufferUsages::STORAGE);
         let image = buffer(gpu, "image", size, wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC);
-        let material = [(0, &params), (1, &textures), (2, &texels)];
-        if m.variant == Variant::Full {
-            let g0 = bind(gpu, lighting, 0, &material[1..]); // the light map does not read the parameters
-            let g1 = bind(gpu, lighting, 1, &[(0, &render_params), (1, &lights)]);
-            record(&mut encoder, lighting, [&g0, &g1], m.outer_normal.width * m.outer_normal.height);
+        let (op, tex, texel) = ((0, Res::Buffer(&params)), (1, Res::Buffer(&textures)), (2, Res::Buffer(&texels)));
+        let scene_group = |p: &wgpu::ComputePipeline, with_image: bool| {
+            let mut r = vec![(0, Res::Buffer(&render_params)), (1, Res::Buffer(&lights))];
+            if with_image {
+                r.push((2, Res::Buffer(&image)));
+            }
+            group(gpu, p, 1, &r)
+        };
+        let texels_n = m.outer_normal.width * m.outer_normal.height;
+        match (&mesh, &seen) {
+            (None, _) => {
+                if m.variant == Variant::Full {
+                    let p = &k[LIGHT_MAP];
+                    let g = [group(gpu, p, 0, &[tex, texel]), scene_group(p, false)];
+                    dispatch(&mut encoder, p, &[&g[0], &g[1]], texels_n);
+                }
+                let p = &k[RENDER];
+                let g = [group(gpu, p, 0, &[op, tex, texel]), scene_group(p, true)];
+                dispatch(&mut encoder, p, &[&g[0], &g[1]], pixels);
+            }
+            (Some((vertices, triangles, n)), Some(seen)) => {
+                let (v, t) = ((0, Res::Buffer(vertices)), (1, Res::Buffer(triangles)));
+                if m.variant == Variant::Full {
+                    let size = [m.outer_normal.width, m.outer_normal.height];
+                    let uv = rasterize(gpu, &mut encoder, &gpu.raster[0], size, [vertices, triangles], *n, None);
+                    let state =
+                        [0, 1].map(|_| buffer(gpu, "dilation", 16 * texels_n as u64, wgpu::BufferUsages::STORAGE));
+                    let p = &k[LIGHT_MAP_MESH];
+                    let g = [
+                        group(gpu, p, 0, &[tex, texel]),
+                        scene_group(p, false),
+                        group(
+                            gpu,
+                            p,
+                            2,
+                            &[
+                                (0, Res::Buffer(vertices)),
+                                (1, Res::Buffer(triangles)),
+                                (2, Res::View(&uv)),
+                                (4, Res::Buffer(&state[0])),
+                            ],
+                        ),
+                    ];
+                    dispatch(&mut encoder, p, &[&g[0], &g[1], &g[2]], texels_n);
+                    let p = &k[DILATE];
+                    for pass in 0..m.dilate {
+                        let (from, to) = (&state[pass % 2], &state[(pass + 1) % 2]);
+                        let g = [
+                            group(gpu, p, 0, &[(1, Res::Buffer(&textures))]),
+                            group(gpu, p, 1, &[]),
+                            group(gpu, p, 2, &[(3, Res::Buffer(from)), (4, Res::Buffer(to))]),
+                        ];
+                        dispatch(&mut encoder, p, &[&g[0], &g[1], &g[2]], texels_n);
+                    }
+                    let p = &k[STORE];
+                    let g = [
+                        group(gpu, p, 0, &[(1, Res::Buffer(&textures)), (2, Res::Buffer(&texels))]),
+                        group(gpu, p, 1, &[]),
+                        group(gpu, p, 2, &[(3, Res::Buffer(&state[m.dilate % 2]))]),
+                    ];
+                    dispatch(&mut encoder, p, &[&g[0], &g[1], &g[2]], texels_n);
+                    views.push(uv);
+                    buffers.extend(state);
+                }
+                let p = &k[RENDER_MESH];
+                let g = [
+                    group(gpu, p, 0, &[op, tex, texel]),
+                    scene_group(p, true),
+                    group(gpu, p, 2, &[v, t, (2, Res::View(seen))]),
+                ];
+                dispatch(&mut encoder, p, &[&g[0], &g[1], &g[2]], pixels);
+            }
+            _ => unreachable!("a mesh is rasterized through the camera"),
         }
-        let g0 = bind(gpu, shading, 0, &material);
-        let g1 = bind(gpu, shading, 1, &[(0, &render_params), (1, &lights), (2, &image)]);
-        record(&mut encoder, shading, [&g0, &g1], pixels);
         encoder.copy_buffer_to_buffer(&image, 0, &read, s as u64 * size, size);
-        keep.push((params, textures, texels, image));
+        buffers.extend([params, textures, texels, image]);
     }
-    finish(gpu, encoder, &read)
+    finish(gpu, encoder, &read) // the buffers and views live until the work is done
 }

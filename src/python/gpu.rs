@@ -5,9 +5,9 @@ use super::api::{parse_options, parse_stack};
 use super::arrays::{batch, Kind};
 use super::oat::OatMaterial;
 use crate::gpu;
-use crate::render::{pinhole, Light};
+use crate::render::{pinhole, Light, Shape};
 use numpy::{PyArrayDyn, PyArrayMethods, PyUntypedArrayMethods};
-use pyo3::exceptions::{PyRuntimeError, PyValueError};
+use pyo3::exceptions::PyRuntimeError;
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyList};
 
@@ -99,7 +99,7 @@ pub fn render_gpu<'py>(
     stacks: &Bound<'py, PyList>,
     model: &str,
     options: Option<&Bound<'py, PyDict>>,
-    shape: &str,
+    shape: &Bound<'py, PyAny>,
     camera: Option<([f64; 3], [f64; 3], f64)>,
     lights: Vec<(String, [f64; 3], [f64; 3])>,
     width: usize,
@@ -116,20 +116,19 @@ pub fn render_gpu<'py>(
     numpy::PyArray1::from_vec(py, image).reshape([parsed.len(), height, width, 3]).map(|a| a.into_any())
 }
 
-/// The GPU's scene: "sphere" or "plane", the camera (None: orthographic) and the lights (kind, vector, rgb).
+/// The GPU's scene: the shape ("sphere", "plane" or a mesh's arrays, as for render), the camera (None:
+/// orthographic) and the lights (kind, vector, rgb).
 fn scene(
-    shape: &str,
+    shape: &Bound<'_, PyAny>,
     camera: Option<([f64; 3], [f64; 3], f64)>,
     lights: Vec<(String, [f64; 3], [f64; 3])>,
     width: usize,
     height: usize,
 ) -> PyResult<gpu::Scene> {
-    let shape = match shape {
-        "sphere" => 0,
-        "plane" => 1,
-        _ => {
-            return Err(PyValueError::new_err(format!("device='gpu' renders shape 'sphere' or 'plane', got {shape:?}")))
-        }
+    let (shape, mesh) = match super::render::shape(shape)? {
+        Shape::Sphere => (0, None),
+        Shape::Plane => (1, None),
+        Shape::Mesh(mesh) => (2, Some(mesh.gpu_arrays())),
     };
     let camera = camera.map(|(o, t, fov)| {
         let o = glam::DVec3::from_array(o);
@@ -146,16 +145,17 @@ fn scene(
             .map(|x| x as f32),
         );
     }
-    Ok(gpu::Scene { width, height, shape, camera, lights: rows })
+    Ok(gpu::Scene { width, height, shape, mesh, camera, lights: rows })
 }
 
-/// Renders Oat materials on the GPU: (materials, height, width, 3) float32, the arguments as for render_gpu.
+/// Renders Oat materials on the GPU: (materials, height, width, 3) float32, the arguments as for render_gpu, and
+/// meshes too.
 #[pyfunction]
 #[pyo3(signature = (materials, shape, camera, lights, width, height))]
 pub fn render_oat_gpu<'py>(
     py: Python<'py>,
     materials: Vec<Py<OatMaterial>>,
-    shape: &str,
+    shape: &Bound<'py, PyAny>,
     camera: Option<([f64; 3], [f64; 3], f64)>,
     lights: Vec<(String, [f64; 3], [f64; 3])>,
     width: usize,

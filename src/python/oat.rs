@@ -115,7 +115,7 @@ pub struct OatMaterial(pub(crate) Arc<Prepared>);
 #[pymethods]
 impl OatMaterial {
     #[new]
-    #[pyo3(signature = (outer_albedo, outer_opacity, outer_normal, inner, variant, shadowing, border, texel, light_map))]
+    #[pyo3(signature = (outer_albedo, outer_opacity, outer_normal, inner, variant, shadowing, border, texel, dilate, light_map))]
     #[allow(clippy::too_many_arguments)]
     fn new(
         outer_albedo: PyReadonlyArray3<'_, f64>,
@@ -126,6 +126,7 @@ impl OatMaterial {
         shadowing: bool,
         border: &str,
         texel: [f64; 2],
+        dilate: usize,
         light_map: Option<PyReadonlyArray3<'_, f64>>,
     ) -> PyResult<Self> {
         let variant = match variant {
@@ -157,6 +158,7 @@ impl OatMaterial {
             shadowing,
             border: self::border(border)?,
             texel,
+            dilate,
         };
         let light_map: Option<Texture> = light_map.map(texture).transpose()?;
         Ok(OatMaterial(Arc::new(Prepared { material, light_map })))

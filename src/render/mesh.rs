@@ -131,6 +131,19 @@ impl Mesh {
         Some(Hit { p: lerp3(&self.positions), n, t, uv })
     }
 
+    /// The mesh for the GPU (gpu/shaders/mesh.wgsl): per vertex (position, normal, uv, tangent) as 11 float32, and
+    /// the triangles' vertex indices.
+    pub fn gpu_arrays(&self) -> (Vec<f32>, Vec<u32>) {
+        let mut rows = Vec::with_capacity(11 * self.positions.len());
+        for k in 0..self.positions.len() {
+            let (p, n, t) = (self.positions[k], self.normals[k], self.tangents[k]);
+            rows.extend(
+                [p.x, p.y, p.z, n.x, n.y, n.z, self.uvs[k][0], self.uvs[k][1], t.x, t.y, t.z].map(|x| x as f32),
+            );
+        }
+        (rows, self.triangles.iter().flatten().map(|&i| i as u32).collect())
+    }
+
     /// The mesh rasterized in uv space at width x height texels: the surface point at each texel centre
     /// ((i + ½)/W, (j + ½)/H) that a triangle covers, None elsewhere (the light map of Oat 2006, step 2).
     pub fn rasterize_uv(&self, width: usize, height: usize) -> Vec<Option<Hit>> {

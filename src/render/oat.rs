@@ -14,6 +14,7 @@
 //! | `shadowing`     | weight light reaching inner layers by the outer transparency (the chapter's future work) |
 //! | `border`        | texture addressing: clamp or wrap                                                     |
 //! | `texel`         | the size of a texel in uv, (1/W, 1/H) of the outer textures (the chapter's 1/1024)     |
+//! | `dilate`        | the light map's dilation passes on a mesh, across its uv seams                         |
 //!
 //! Composite (Listing 3), from the deepest layer up: C = lerp(base_k · light_k, C_below, w_k), w_k = (1 − α_k) ·
 //! saturate(n · v), n from the outer normal map; the outer layer's base is its albedo lit unblurred at uv; inner layer
@@ -69,6 +70,8 @@ pub struct Material {
     pub shadowing: bool,
     pub border: Border,
     pub texel: [f64; 2],
+    /// The light map's dilation passes on a mesh (`light_map`).
+    pub dilate: usize,
 }
 
 /// A material ready to shade: with its light map for variant `Full`.

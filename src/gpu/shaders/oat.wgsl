@@ -229,3 +229,94 @@ fn render_oat(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgr
     image[3u * px + 1u] = rgb.y;
     image[3u * px + 2u] = rgb.z;
 }
+
+// Meshes (mesh.wgsl): the visibility target of the pass in uv space or through the camera, and the light map's
+// dilation state (rgb, covered) in and out.
+@group(2) @binding(2) var visibility_target: texture_2d<f32>;
+@group(2) @binding(3) var<storage, read> state_in: array<vec4<f32>>;
+@group(2) @binding(4) var<storage, read_write> state_out: array<vec4<f32>>;
+
+// oat::light_map for a mesh: each texel the uv pass covered, lit through the normal map's normal.
+@compute @workgroup_size(64)
+fn light_map_mesh(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups) groups: vec3<u32>) {
+    let d = textures[LIGHT_MAP];
+    let k = thread_index(gid, groups);
+    if k >= d.y * d.z {
+        return;
+    }
+    let hit = visible(textureLoad(visibility_target, vec2<u32>(k % d.y, k / d.y), 0));
+    var out = vec4<f32>(0.0);
+    if hit.found {
+        out = vec4<f32>(diffuse(hit.p, to_world(hit, unit_or_z(texel(OUTER_NORMAL, k % d.y, k / d.y)))), 1.0);
+    }
+    state_out[k] = out;
+}
+
+// oat::light_map's dilation pass: an empty texel next to covered ones takes their mean.
+@compute @workgroup_size(64)
+fn dilate(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups) groups: vec3<u32>) {
+    let d = textures[LIGHT_MAP];
+    let k = thread_index(gid, groups);
+    if k >= d.y * d.z {
+        return;
+    }
+    var out = state_in[k];
+    if out.w == 0.0 {
+        let i = i32(k % d.y);
+        let j = i32(k / d.y);
+        var sum = vec4<f32>(0.0);
+        for (var dj = -1; dj <= 1; dj++) {
+            for (var di = -1; di <= 1; di++) {
+                let a = i + di;
+                let b = j + dj;
+                if (di != 0 || dj != 0) && a >= 0 && b >= 0 && a < i32(d.y) && b < i32(d.z) {
+                    let s = state_in[u32(b) * d.y + u32(a)];
+                    if s.w > 0.0 {
+                        sum += vec4<f32>(s.xyz, 1.0);
+                    }
+                }
+            }
+        }
+        if sum.w > 0.0 {
+            out = vec4<f32>(sum.xyz / sum.w, 1.0);
+        }
+    }
+    state_out[k] = out;
+}
+
+// The dilated light map into its texture.
+@compute @workgroup_size(64)
+fn store_light_map(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups) groups: vec3<u32>) {
+    let d = textures[LIGHT_MAP];
+    let k = thread_index(gid, groups);
+    if k >= d.y * d.z {
+        return;
+    }
+    for (var c = 0u; c < 3u; c++) {
+        texels[d.x + 3u * k + c] = state_in[k][c];
+    }
+}
+
+// render_rows for a mesh: the surface the camera pass found at the pixel, its normal turned towards the viewer
+// (Mesh::intersect).
+@compute @workgroup_size(64)
+fn render_oat_mesh(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups) groups: vec3<u32>) {
+    let px = thread_index(gid, groups);
+    if px >= rp.width * rp.height {
+        return;
+    }
+    var hit = visible(textureLoad(visibility_target, vec2<u32>(px % rp.width, px / rp.width), 0));
+    let d = camera_ray(px)[1];
+    var rgb = vec3<f32>(0.0);
+    if hit.found {
+        if dot(hit.n, d) > 0.0 {
+            hit.n = -hit.n;
+        }
+        if dot(-d, hit.n) > 0.0 {
+            rgb = shade(hit, -d);
+        }
+    }
+    image[3u * px] = rgb.x;
+    image[3u * px + 1u] = rgb.y;
+    image[3u * px + 2u] = rgb.z;
+}
