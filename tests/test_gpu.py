@@ -173,6 +173,17 @@ def test_device_choice_and_errors():
         stack.eval(wi, wo, device="gpu", lut="fitted")
 
 
+def _uv_sphere(lat: int = 32, lon: int = 64) -> lamina.Mesh:
+    """A latitude-longitude unit sphere mesh (normals = positions, the analytic sphere's uv chart)."""
+    th, ph = np.meshgrid(np.linspace(0, np.pi, lat + 1), np.linspace(-np.pi, np.pi, lon + 1), indexing="ij")
+    p = np.stack([np.sin(th) * np.sin(ph), np.cos(th), np.sin(th) * np.cos(ph)], -1).reshape(-1, 3)
+    uv = np.stack([0.5 + ph / (2 * np.pi), th / np.pi], -1).reshape(-1, 2)
+    idx = np.arange((lat + 1) * (lon + 1)).reshape(lat + 1, lon + 1)
+    a, b, c, d = idx[:-1, :-1], idx[:-1, 1:], idx[1:, :-1], idx[1:, 1:]
+    tris = np.concatenate([np.stack([a, c, b], -1).reshape(-1, 3), np.stack([b, c, d], -1).reshape(-1, 3)])
+    return lamina.Mesh(p, tris, normals=p, uvs=uv)
+
+
 @pytest.mark.parametrize(
     "material,model",
     [
@@ -182,11 +193,19 @@ def test_device_choice_and_errors():
         ("varnished-diffuse", "belcour"),
     ],
 )
-@pytest.mark.parametrize("shape,camera", [("sphere", None), ("plane", ((0.3, -2.0, 3.0), (0, 0, 0), 40))])
+@pytest.mark.parametrize(
+    "shape,camera",
+    [("sphere", None), ("plane", ((0.3, -2.0, 3.0), (0, 0, 0), 40)), ("mesh", ((0.5, 0.8, 3.0), (0, 0, 0), 45))],
+)
 def test_renderer_matches_the_cpu_renderer(material, model, shape, camera):
     """The deterministic scenes (directional and point lights): the GPU renderer and the CPU renderer, pixel by pixel,
-    ≤ 1e-3 relative on pixels above 1e-6 of the peak (the issue's criterion), and a batch is the single renders."""
+    ≤ 1e-3 relative on pixels above 1e-6 of the peak (the issue's criterion), and a batch is the single renders. A
+    mesh (a latitude-longitude sphere) is rasterized on the GPU and ray traced on the CPU: both sample pixel centres,
+    so they agree but for silhouette pixels, where the two may pick different triangles; those are left out (pixels
+    whose 3 x 3 neighbourhood is not entirely covered on the CPU; the rest, 34% of the image, agrees to ≤ 7.3e-6)."""
     stack = materials.preset(material) if material in materials.PRESETS else materials.suite(material)
+    if shape == "mesh":
+        shape = _uv_sphere()
     lights = [
         lamina.DirectionalLight((-0.4, 0.5, 0.8), (2.0, 1.5, 1.0)),
         lamina.PointLight((1.5, 1.0, 2.5), (8.0, 8.0, 6.0)),
@@ -197,7 +216,15 @@ def test_renderer_matches_the_cpu_renderer(material, model, shape, camera):
     assert out.shape == (2, 32, 40, 3) and out.dtype == np.float32
     np.testing.assert_array_equal(out[0], out[1])
     big = cpu > 1e-6 * cpu.max()
+    if isinstance(shape, lamina.Mesh):
+        covered = cpu.max(axis=-1) > 0
+        inner = np.ones_like(covered)
+        for dj in (-1, 0, 1):
+            for di in (-1, 0, 1):
+                inner &= np.roll(covered, (dj, di), axis=(0, 1))
+        big &= inner[..., None]
+        assert inner.mean() > 0.25
     rel = np.abs(out[0][big] - cpu[big]) / cpu[big]
     assert rel.max() <= 1e-3, rel.max()
-    assert np.abs(out[0][~big]).max() <= 1e-5 * cpu.max()
+    assert np.abs(out[0][~big & (cpu <= 1e-6 * cpu.max())]).max() <= 1e-5 * cpu.max()
     assert big.mean() > 0.2

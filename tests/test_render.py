@@ -199,7 +199,7 @@ def test_image_files_round_trip(tmp_path):
 @pytest.mark.parametrize(
     "kwargs,error,match",
     [
-        (dict(device="gpu"), ValueError, "environment lights, meshes"),
+        (dict(device="gpu"), ValueError, "environment lights, per-element textures"),
         (dict(device="tpu"), ValueError, "device must be"),
         (dict(width=0), ValueError, "width must be in"),
         (dict(spp=1.5), TypeError, "spp must be an integer"),

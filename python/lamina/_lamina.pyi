@@ -214,7 +214,7 @@ def render_gpu(
     stacks: list[tuple[list[dict], float]],
     model: str,
     options: dict | None,
-    shape: str,
+    shape: str | tuple,
     camera: tuple[tuple[float, float, float], tuple[float, float, float], float] | None,
     lights: list[tuple[str, tuple[float, float, float], tuple[float, float, float]]],
     width: int,

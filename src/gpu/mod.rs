@@ -5,9 +5,9 @@
 //!
 //! Models on the GPU so far: `microfacet` (every option) and `belcour` (tabulated, every other option). A model's
 //! tables are uploaded once per stack and options and kept (`uploaded`). Inputs of any length are split into
-//! dispatches of at most CHUNK pairs. The renderer (`render`, shaders/scene.wgsl and render.wgsl) renders stacks on
-//! the sphere or the plane under directional and point lights; Oat 2006's gooey layers (`oat`, shaders/oat.wgsl)
-//! render there and on meshes (shaders/mesh.wgsl, rasterized by raster.wgsl). Device errors come back as values.
+//! dispatches of at most CHUNK pairs. The renderer (`render`, shaders/scene.wgsl and render.wgsl) renders stacks,
+//! and Oat 2006's gooey layers (`oat`, shaders/oat.wgsl), on the sphere, the plane and meshes (shaders/mesh.wgsl,
+//! rasterized by raster.wgsl) under directional and point lights. Device errors come back as values.
 
 pub mod oat;
 
@@ -51,19 +51,20 @@ pub fn compose_raster() -> String {
     format!("{OPTICS}\n{SCENE}\n{MESH}\n{RASTER}")
 }
 
-/// A model's render shader: the model, the scene and the render kernel.
+/// A model's render shader: the model, the scene, the mesh and the render kernels.
 pub fn compose_render(model: &str) -> Option<String> {
-    compose(model).map(|m| format!("{m}\n{SCENE}\n{RENDER}"))
+    compose(model).map(|m| format!("{m}\n{SCENE}\n{MESH}\n{RENDER}"))
 }
 
-/// The adapter, its device, per model (in the order of MODELS) its eval and render pipelines, Oat's kernels (in the
-/// order of oat::KERNELS) and the mesh's rasterization in uv space and through the camera.
+/// The adapter, its device, per model (in the order of MODELS) its eval pipeline and its render pipelines for the
+/// sphere or plane and for a mesh, Oat's kernels (in the order of oat::KERNELS) and the mesh's rasterization in uv
+/// space and through the camera.
 pub struct Gpu {
     pub info: wgpu::AdapterInfo,
     device: wgpu::Device,
     queue: wgpu::Queue,
     pipelines: Vec<wgpu::ComputePipeline>,
-    renderers: Vec<wgpu::ComputePipeline>,
+    renderers: Vec<[wgpu::ComputePipeline; 2]>,
     oat: Vec<wgpu::ComputePipeline>,
     raster: [wgpu::RenderPipeline; 2],
 }
@@ -162,8 +163,10 @@ async fn create() -> std::result::Result<Gpu, String> {
         })
     };
     let pipelines = MODELS.iter().map(|(name, _)| pipeline(name, compose(name).expect("listed"), "main")).collect();
-    let renderers =
-        MODELS.iter().map(|(name, _)| pipeline(name, compose_render(name).expect("listed"), "render")).collect();
+    let renderers = MODELS
+        .iter()
+        .map(|(name, _)| ["render", "render_mesh"].map(|e| pipeline(name, compose_render(name).expect("listed"), e)))
+        .collect();
     let oat = oat::KERNELS.iter().map(|entry| pipeline("oat", oat::compose(), entry)).collect();
     let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
         label: Some("raster"),
@@ -373,7 +376,7 @@ fn batch(gpu: &Gpu, up: &Uploaded, pipeline: &wgpu::ComputePipeline, pairs: &[f3
 }
 
 /// Submits one dispatch of a batch, then (with `read`) the copy of its output into `read`.
-fn dispatch(gpu: &Gpu, pipeline: &wgpu::ComputePipeline, b: &Batch, read: Option<&wgpu::Buffer>) {
+fn dispatch_batch(gpu: &Gpu, pipeline: &wgpu::ComputePipeline, b: &Batch, read: Option<&wgpu::Buffer>) {
     let mut encoder = gpu.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: None });
     {
         let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor { label: None, timestamp_writes: None });
@@ -441,7 +444,7 @@ fn eval_scoped(model: &str, stack: &Stack, opts: &Options, pairs: &[f32]) -> Res
             usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
             mapped_at_creation: false,
         });
-        dispatch(gpu, pipeline, &b, Some(&read));
+        dispatch_batch(gpu, pipeline, &b, Some(&read));
         let slice = read.slice(..);
         slice.map_async(wgpu::MapMode::Read, |_| {});
         wait(gpu)?;
@@ -457,11 +460,11 @@ pub fn resident_seconds(model: &str, stack: &Stack, opts: &Options, pairs: &[f32
     scoped(gpu()?, || {
         let (gpu, up, pipeline, chunk) = prepared(model, stack, opts, pairs)?;
         let batches: Vec<Batch> = pairs.chunks(6 * chunk).map(|rows| batch(gpu, &up, pipeline, rows)).collect();
-        batches.iter().for_each(|b| dispatch(gpu, pipeline, b, None));
+        batches.iter().for_each(|b| dispatch_batch(gpu, pipeline, b, None));
         wait(gpu)?;
         let start = std::time::Instant::now();
         for _ in 0..repeats.max(1) {
-            batches.iter().for_each(|b| dispatch(gpu, pipeline, b, None));
+            batches.iter().for_each(|b| dispatch_batch(gpu, pipeline, b, None));
             wait(gpu)?;
         }
         Ok(start.elapsed().as_secs_f64() / repeats.max(1) as f64)
@@ -510,16 +513,6 @@ fn buffer(gpu: &Gpu, label: &str, size: u64, usage: wgpu::BufferUsages) -> wgpu:
     gpu.device.create_buffer(&wgpu::BufferDescriptor { label: Some(label), size, usage, mapped_at_creation: false })
 }
 
-/// A bind group of `pipeline`'s group `g` with the buffers at their bindings.
-fn bind(gpu: &Gpu, pipeline: &wgpu::ComputePipeline, g: u32, buffers: &[(u32, &wgpu::Buffer)]) -> wgpu::BindGroup {
-    let entries: Vec<wgpu::BindGroupEntry> = buffers
-        .iter()
-        .map(|(binding, b)| wgpu::BindGroupEntry { binding: *binding, resource: b.as_entire_binding() })
-        .collect();
-    let layout = pipeline.get_bind_group_layout(g);
-    gpu.device.create_bind_group(&wgpu::BindGroupDescriptor { label: None, layout: &layout, entries: &entries })
-}
-
 /// The workgroups of 64 threads covering `threads`, as (x, y) within the per-dimension limit of 65535 (the
 /// kernels' `thread_index`).
 fn workgroups(threads: usize) -> (u32, u32) {
@@ -528,19 +521,108 @@ fn workgroups(threads: usize) -> (u32, u32) {
     (x as u32, groups.div_ceil(x) as u32)
 }
 
-/// Records one dispatch of `pipeline` over `threads` with bind groups 0 and 1.
-fn record(
+/// A resource of a bind group.
+#[derive(Clone, Copy)]
+enum Res<'a> {
+    Buffer(&'a wgpu::Buffer),
+    View(&'a wgpu::TextureView),
+}
+
+/// A bind group of `layout_of`'s group `g` with the resources at their bindings (none: an unused group).
+fn group(gpu: &Gpu, layout_of: &wgpu::ComputePipeline, g: u32, resources: &[(u32, Res)]) -> wgpu::BindGroup {
+    let entries: Vec<wgpu::BindGroupEntry> = resources
+        .iter()
+        .map(|(binding, r)| wgpu::BindGroupEntry {
+            binding: *binding,
+            resource: match r {
+                Res::Buffer(b) => b.as_entire_binding(),
+                Res::View(v) => wgpu::BindingResource::TextureView(v),
+            },
+        })
+        .collect();
+    let layout = layout_of.get_bind_group_layout(g);
+    gpu.device.create_bind_group(&wgpu::BindGroupDescriptor { label: None, layout: &layout, entries: &entries })
+}
+
+/// Records one dispatch of `pipeline` over `threads` with its bind groups 0, 1 and 2.
+fn dispatch(
     encoder: &mut wgpu::CommandEncoder,
     pipeline: &wgpu::ComputePipeline,
-    groups: [&wgpu::BindGroup; 2],
+    groups: &[&wgpu::BindGroup],
     threads: usize,
 ) {
     let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor { label: None, timestamp_writes: None });
     pass.set_pipeline(pipeline);
-    pass.set_bind_group(0, groups[0], &[]);
-    pass.set_bind_group(1, groups[1], &[]);
+    for (g, bind) in groups.iter().enumerate() {
+        pass.set_bind_group(g as u32, *bind, &[]);
+    }
     let (x, y) = workgroups(threads);
     pass.dispatch_workgroups(x, y, 1);
+}
+
+/// A visibility target of `size` texels (and a depth buffer with `depth`), cleared, and the mesh rasterized into it
+/// by `pipeline` with the mesh's bind group (and the scene's, for the camera).
+fn rasterize(
+    gpu: &Gpu,
+    encoder: &mut wgpu::CommandEncoder,
+    pipeline: &wgpu::RenderPipeline,
+    size: [usize; 2],
+    mesh: [&wgpu::Buffer; 2],
+    triangles: usize,
+    scene: Option<&wgpu::Buffer>,
+) -> wgpu::TextureView {
+    let texture = |format, usage| {
+        gpu.device.create_texture(&wgpu::TextureDescriptor {
+            label: Some("visibility"),
+            size: wgpu::Extent3d { width: size[0] as u32, height: size[1] as u32, depth_or_array_layers: 1 },
+            mip_level_count: 1,
+            sample_count: 1,
+            dimension: wgpu::TextureDimension::D2,
+            format,
+            usage,
+            view_formats: &[],
+        })
+    };
+    let target = texture(VISIBILITY, wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::TEXTURE_BINDING);
+    let view = target.create_view(&Default::default());
+    let depth = scene.map(|_| texture(DEPTH, wgpu::TextureUsages::RENDER_ATTACHMENT).create_view(&Default::default()));
+    let bind = |g: u32, entries: &[(u32, &wgpu::Buffer)]| {
+        let entries: Vec<wgpu::BindGroupEntry> = entries
+            .iter()
+            .map(|(binding, b)| wgpu::BindGroupEntry { binding: *binding, resource: b.as_entire_binding() })
+            .collect();
+        let layout = pipeline.get_bind_group_layout(g);
+        gpu.device.create_bind_group(&wgpu::BindGroupDescriptor { label: None, layout: &layout, entries: &entries })
+    };
+    let groups = [
+        bind(0, &[]),
+        scene.map_or_else(|| bind(1, &[]), |rp| bind(1, &[(0, rp)])),
+        bind(2, &[(0, mesh[0]), (1, mesh[1])]),
+    ];
+    let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
+        label: Some("rasterize"),
+        color_attachments: &[Some(wgpu::RenderPassColorAttachment {
+            view: &view,
+            depth_slice: None,
+            resolve_target: None,
+            ops: wgpu::Operations { load: wgpu::LoadOp::Clear(wgpu::Color::TRANSPARENT), store: wgpu::StoreOp::Store },
+        })],
+        depth_stencil_attachment: depth.as_ref().map(|view| wgpu::RenderPassDepthStencilAttachment {
+            view,
+            depth_ops: Some(wgpu::Operations { load: wgpu::LoadOp::Clear(1.0), store: wgpu::StoreOp::Store }),
+            stencil_ops: None,
+        }),
+        timestamp_writes: None,
+        occlusion_query_set: None,
+        multiview_mask: None,
+    });
+    pass.set_pipeline(pipeline);
+    for (g, b) in groups.iter().enumerate() {
+        pass.set_bind_group(g as u32, b, &[]);
+    }
+    pass.draw(0..3 * triangles as u32, 0..1);
+    drop(pass);
+    view
 }
 
 /// Submits `encoder` and reads the float32 buffer `read` back.
@@ -562,20 +644,29 @@ pub fn render(model: &str, stacks: &[Stack], opts: &Options, scene: &Scene) -> R
 
 fn render_scoped(gpu: &'static Gpu, model: &str, stacks: &[Stack], opts: &Options, scene: &Scene) -> Result<Vec<f32>> {
     let Some(k) = MODELS.iter().position(|m| m.0 == model) else { return Err(unsupported(model)) };
-    if scene.mesh.is_some() {
-        return value_error("device='gpu' renders stacks on the sphere or the plane; meshes run on the CPU");
-    }
-    let pipeline = &gpu.renderers[k];
+    let pipeline = &gpu.renderers[k][scene.mesh.is_some() as usize];
     let pixels = scene.width * scene.height;
     let (render_params, lights) = scene_buffers(gpu, scene);
     let size = (4 * 3 * pixels) as u64;
-    let read = buffer(
-        gpu,
-        "readback",
-        size * stacks.len() as u64,
-        wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
-    );
+    let usage = wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST;
+    let read = buffer(gpu, "readback", size * stacks.len() as u64, usage);
     let mut encoder = gpu.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: None });
+    // A mesh: rasterized once through the camera; each stack's kernel reads the surface back (`render_mesh`).
+    let mesh = scene.mesh.as_ref().map(|(rows, tris)| {
+        let vertices = init(gpu, "vertices", bytemuck::cast_slice(rows), wgpu::BufferUsages::STORAGE);
+        let triangles = init(gpu, "triangles", bytemuck::cast_slice(tris), wgpu::BufferUsages::STORAGE);
+        let size = [scene.width, scene.height];
+        let seen = rasterize(
+            gpu,
+            &mut encoder,
+            &gpu.raster[1],
+            size,
+            [&vertices, &triangles],
+            tris.len() / 3,
+            Some(&render_params),
+        );
+        (vertices, triangles, seen)
+    });
     let mut keep = Vec::new();
     for (s, stack) in stacks.iter().enumerate() {
         let up = upload(gpu, model, stack, opts)?;
@@ -587,13 +678,17 @@ fn render_scoped(gpu: &'static Gpu, model: &str, stacks: &[Stack], opts: &Option
         let image = buffer(gpu, "image", size, wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC);
         // Group 0 as the render entry point uses it: the parameters, the model's arrays and `out` (not `pairs`).
         let n = up.arrays.len() as u32;
-        let model_buffers: Vec<(u32, &wgpu::Buffer)> = std::iter::once((0, &params))
-            .chain(up.arrays.iter().enumerate().map(|(j, b)| (j as u32 + 1, b)))
-            .chain([(n + 2, &scratch)])
+        let model_buffers: Vec<(u32, Res)> = std::iter::once((0, Res::Buffer(&params)))
+            .chain(up.arrays.iter().enumerate().map(|(j, b)| (j as u32 + 1, Res::Buffer(b))))
+            .chain([(n + 2, Res::Buffer(&scratch))])
             .collect();
-        let g0 = bind(gpu, pipeline, 0, &model_buffers);
-        let g1 = bind(gpu, pipeline, 1, &[(0, &render_params), (1, &lights), (2, &image)]);
-        record(&mut encoder, pipeline, [&g0, &g1], pixels);
+        let scene_group = [(0, Res::Buffer(&render_params)), (1, Res::Buffer(&lights)), (2, Res::Buffer(&image))];
+        let mut groups = vec![group(gpu, pipeline, 0, &model_buffers), group(gpu, pipeline, 1, &scene_group)];
+        if let Some((vertices, triangles, seen)) = &mesh {
+            let resources = [(0, Res::Buffer(vertices)), (1, Res::Buffer(triangles)), (2, Res::View(seen))];
+            groups.push(group(gpu, pipeline, 2, &resources));
+        }
+        dispatch(&mut encoder, pipeline, &groups.iter().collect::<Vec<_>>(), pixels);
         encoder.copy_buffer_to_buffer(&image, 0, &read, s as u64 * size, size);
         keep.push((up, params, scratch, image));
     }

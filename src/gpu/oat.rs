@@ -7,7 +7,7 @@
 //! dispatch reads the surface back from the visibility target.
 
 use super::{
-    buffer, finish, gpu, init, scene_buffers, scoped, workgroups, Gpu, Scene, DEPTH, MESH, OPTICS, SCENE, VISIBILITY,
+    buffer, dispatch, finish, gpu, group, init, rasterize, scene_buffers, scoped, Gpu, Res, Scene, MESH, OPTICS, SCENE,
 };
 use crate::error::{value_error, Result};
 use crate::render::oat::{Material, Prepared, Variant};
@@ -88,110 +88,6 @@ pub fn render(materials: &[Arc<Prepared>], scene: &Scene) -> Result<Vec<f32>> {
 }
 
 type Packed = (Vec<[u32; 4]>, Vec<f32>);
-
-/// A resource of a bind group.
-#[derive(Clone, Copy)]
-enum Res<'a> {
-    Buffer(&'a wgpu::Buffer),
-    View(&'a wgpu::TextureView),
-}
-
-/// A bind group of `layout_of`'s group `g` with the resources at their bindings (none: an unused group).
-fn group(gpu: &Gpu, layout_of: &wgpu::ComputePipeline, g: u32, resources: &[(u32, Res)]) -> wgpu::BindGroup {
-    let entries: Vec<wgpu::BindGroupEntry> = resources
-        .iter()
-        .map(|(binding, r)| wgpu::BindGroupEntry {
-            binding: *binding,
-            resource: match r {
-                Res::Buffer(b) => b.as_entire_binding(),
-                Res::View(v) => wgpu::BindingResource::TextureView(v),
-            },
-        })
-        .collect();
-    let layout = layout_of.get_bind_group_layout(g);
-    gpu.device.create_bind_group(&wgpu::BindGroupDescriptor { label: None, layout: &layout, entries: &entries })
-}
-
-/// Records one dispatch of `pipeline` over `threads` with its bind groups 0, 1 and 2.
-fn dispatch(
-    encoder: &mut wgpu::CommandEncoder,
-    pipeline: &wgpu::ComputePipeline,
-    groups: &[&wgpu::BindGroup],
-    threads: usize,
-) {
-    let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor { label: None, timestamp_writes: None });
-    pass.set_pipeline(pipeline);
-    for (g, bind) in groups.iter().enumerate() {
-        pass.set_bind_group(g as u32, *bind, &[]);
-    }
-    let (x, y) = workgroups(threads);
-    pass.dispatch_workgroups(x, y, 1);
-}
-
-/// A visibility target of `size` texels (and a depth buffer with `depth`), cleared, and the mesh rasterized into it
-/// by `pipeline` with the mesh's bind group (and the scene's, for the camera).
-fn rasterize(
-    gpu: &Gpu,
-    encoder: &mut wgpu::CommandEncoder,
-    pipeline: &wgpu::RenderPipeline,
-    size: [usize; 2],
-    mesh: [&wgpu::Buffer; 2],
-    triangles: usize,
-    scene: Option<&wgpu::Buffer>,
-) -> wgpu::TextureView {
-    let texture = |format, usage| {
-        gpu.device.create_texture(&wgpu::TextureDescriptor {
-            label: Some("visibility"),
-            size: wgpu::Extent3d { width: size[0] as u32, height: size[1] as u32, depth_or_array_layers: 1 },
-            mip_level_count: 1,
-            sample_count: 1,
-            dimension: wgpu::TextureDimension::D2,
-            format,
-            usage,
-            view_formats: &[],
-        })
-    };
-    let target = texture(VISIBILITY, wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::TEXTURE_BINDING);
-    let view = target.create_view(&Default::default());
-    let depth = scene.map(|_| texture(DEPTH, wgpu::TextureUsages::RENDER_ATTACHMENT).create_view(&Default::default()));
-    let bind = |g: u32, entries: &[(u32, &wgpu::Buffer)]| {
-        let entries: Vec<wgpu::BindGroupEntry> = entries
-            .iter()
-            .map(|(binding, b)| wgpu::BindGroupEntry { binding: *binding, resource: b.as_entire_binding() })
-            .collect();
-        let layout = pipeline.get_bind_group_layout(g);
-        gpu.device.create_bind_group(&wgpu::BindGroupDescriptor { label: None, layout: &layout, entries: &entries })
-    };
-    let groups = [
-        bind(0, &[]),
-        scene.map_or_else(|| bind(1, &[]), |rp| bind(1, &[(0, rp)])),
-        bind(2, &[(0, mesh[0]), (1, mesh[1])]),
-    ];
-    let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
-        label: Some("rasterize"),
-        color_attachments: &[Some(wgpu::RenderPassColorAttachment {
-            view: &view,
-            depth_slice: None,
-            resolve_target: None,
-            ops: wgpu::Operations { load: wgpu::LoadOp::Clear(wgpu::Color::TRANSPARENT), store: wgpu::StoreOp::Store },
-        })],
-        depth_stencil_attachment: depth.as_ref().map(|view| wgpu::RenderPassDepthStencilAttachment {
-            view,
-            depth_ops: Some(wgpu::Operations { load: wgpu::LoadOp::Clear(1.0), store: wgpu::StoreOp::Store }),
-            stencil_ops: None,
-        }),
-        timestamp_writes: None,
-        occlusion_query_set: None,
-        multiview_mask: None,
-    });
-    pass.set_pipeline(pipeline);
-    for (g, b) in groups.iter().enumerate() {
-        pass.set_bind_group(g as u32, b, &[]);
-    }
-    pass.draw(0..3 * triangles as u32, 0..1);
-    drop(pass);
-    view
-}
 
 fn render_scoped(gpu: &'static Gpu, materials: &[Arc<Prepared>], packed: &[Packed], scene: &Scene) -> Result<Vec<f32>> {
     let k = &gpu.oat;

@@ -4,6 +4,8 @@
 
 @group(2) @binding(0) var<storage, read> vertices: array<f32>;
 @group(2) @binding(1) var<storage, read> triangles: array<u32>;
+// The visibility target of a pass in uv space or through the camera (raster.wgsl), for the kernels.
+@group(2) @binding(2) var visibility_target: texture_2d<f32>;
 
 const VERTEX: u32 = 11u;
 

@@ -230,9 +230,7 @@ fn render_oat(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgr
     image[3u * px + 2u] = rgb.z;
 }
 
-// Meshes (mesh.wgsl): the visibility target of the pass in uv space or through the camera, and the light map's
-// dilation state (rgb, covered) in and out.
-@group(2) @binding(2) var visibility_target: texture_2d<f32>;
+// Meshes (mesh.wgsl): the light map's dilation state (rgb, covered) in and out.
 @group(2) @binding(3) var<storage, read> state_in: array<vec4<f32>>;
 @group(2) @binding(4) var<storage, read_write> state_out: array<vec4<f32>>;
 

@@ -1,7 +1,31 @@
 // The renderer's deterministic path for the models (src/render/mod.rs): one thread per pixel, and
 // Σ f(l, v) max(0, n·l) E over directional and point lights, f from the model's eval_pair. Composed after
-// optics.wgsl, a model's shader (whose `out` serves as each pixel's scratch) and scene.wgsl.
+// optics.wgsl, a model's shader (whose `out` serves as each pixel's scratch), scene.wgsl and mesh.wgsl.
 
+// Σ f(l, v) max(0, n·l) E at a hit seen along d, f from the model's eval_pair (scratch at `base`).
+fn shade_lights(hit: Hit, d: vec3<f32>, base: u32) -> vec3<f32> {
+    var rgb = vec3<f32>(0.0);
+    let b = cross(hit.n, hit.t);
+    let wo = vec3<f32>(dot(-d, hit.t), dot(-d, b), dot(-d, hit.n));
+    for (var k = 0u; k < rp.lights; k++) {
+        let light = incident(k, hit.p);
+        let l = light[0];
+        let wi = vec3<f32>(dot(l, hit.t), dot(l, b), dot(l, hit.n));
+        if wi.z > 0.0 && wo.z > 0.0 {
+            eval_pair(wi, wo, base);
+            rgb += vec3<f32>(out[base], out[base + 1u], out[base + 2u]) * wi.z * light[1];
+        }
+    }
+    return rgb;
+}
+
+fn store(px: u32, rgb: vec3<f32>) {
+    image[3u * px] = rgb.x;
+    image[3u * px + 1u] = rgb.y;
+    image[3u * px + 2u] = rgb.z;
+}
+
+// The sphere or the plane.
 @compute @workgroup_size(64)
 fn render(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups) groups: vec3<u32>) {
     let px = thread_index(gid, groups);
@@ -9,24 +33,30 @@ fn render(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups
         return;
     }
     let ray = camera_ray(px);
-    let d = ray[1];
-    let hit = intersect(ray[0], d);
+    let hit = intersect(ray[0], ray[1]);
     var rgb = vec3<f32>(0.0);
     if hit.found {
-        let b = cross(hit.n, hit.t);
-        let wo = vec3<f32>(dot(-d, hit.t), dot(-d, b), dot(-d, hit.n));
-        let base = px * params.channels;
-        for (var k = 0u; k < rp.lights; k++) {
-            let light = incident(k, hit.p);
-            let l = light[0];
-            let wi = vec3<f32>(dot(l, hit.t), dot(l, b), dot(l, hit.n));
-            if wi.z > 0.0 && wo.z > 0.0 {
-                eval_pair(wi, wo, base);
-                rgb += vec3<f32>(out[base], out[base + 1u], out[base + 2u]) * wi.z * light[1];
-            }
-        }
+        rgb = shade_lights(hit, ray[1], px * params.channels);
     }
-    image[3u * px] = rgb.x;
-    image[3u * px + 1u] = rgb.y;
-    image[3u * px + 2u] = rgb.z;
+    store(px, rgb);
+}
+
+// A mesh: the surface raster.wgsl's camera pass found at the pixel, its normal turned towards the viewer
+// (Mesh::intersect).
+@compute @workgroup_size(64)
+fn render_mesh(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups) groups: vec3<u32>) {
+    let px = thread_index(gid, groups);
+    if px >= rp.width * rp.height {
+        return;
+    }
+    var hit = visible(textureLoad(visibility_target, vec2<u32>(px % rp.width, px / rp.width), 0));
+    let d = camera_ray(px)[1];
+    var rgb = vec3<f32>(0.0);
+    if hit.found {
+        if dot(hit.n, d) > 0.0 {
+            hit.n = -hit.n;
+        }
+        rgb = shade_lights(hit, d, px * params.channels);
+    }
+    store(px, rgb);
 }
