@@ -175,6 +175,17 @@ def report(data: dict, table: list, everything: dict) -> None:
             + ", ".join(f"{n} {label}" for label, n in sorted(picks.items(), key=lambda t: -t[1]))
             + " |"
         )
+    counts = {label: [0, 0] for label, _, _ in CANDIDATES}
+    for r in everything["train"] + everything["held_out"]:
+        for label, f in r["flags"].items():
+            counts[label] = [counts[label][0] + f["nonfinite"], counts[label][1] + f["negative"]]
+    lines += [
+        "",
+        f"Stability on all {len(everything['train']) + len(everything['held_out'])} stacks of both populations "
+        "(values on the suite's direction grid that are NaN or Inf, and negative): "
+        + ", ".join(f"{label} {n} and {neg}" for label, (n, neg) in counts.items())
+        + ".",
+    ]
     lines += [
         "",
         "Leave-one-out margins on the training set at the fitted weights, min over the tolerances of "
