@@ -20,6 +20,13 @@ if not os.environ.get("DRJIT_LIBLLVM_PATH"):
 
 import drjit as dr  # noqa: E402
 import mitsuba as mi  # noqa: E402
+from hypothesis import settings  # noqa: E402
+
+# Property tests draw the same examples on every run (a clean checkout passes or fails the same way); set
+# LAMINA_HYPOTHESIS_EXPLORE=1 to draw fresh ones, e.g. with more examples, and pin what they find with @example.
+settings.register_profile("deterministic", derandomize=True, database=None)
+settings.register_profile("explore", derandomize=False)
+settings.load_profile("explore" if os.environ.get("LAMINA_HYPOTHESIS_EXPLORE") == "1" else "deterministic")
 
 
 def _pick_rgb_variant() -> str:
