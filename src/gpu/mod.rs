@@ -530,6 +530,11 @@ enum Res<'a> {
 
 /// A bind group of `layout_of`'s group `g` with the resources at their bindings (none: an unused group).
 fn group(gpu: &Gpu, layout_of: &wgpu::ComputePipeline, g: u32, resources: &[(u32, Res)]) -> wgpu::BindGroup {
+    group_of(gpu, &layout_of.get_bind_group_layout(g), resources)
+}
+
+/// A bind group of `layout` with the resources at their bindings.
+fn group_of(gpu: &Gpu, layout: &wgpu::BindGroupLayout, resources: &[(u32, Res)]) -> wgpu::BindGroup {
     let entries: Vec<wgpu::BindGroupEntry> = resources
         .iter()
         .map(|(binding, r)| wgpu::BindGroupEntry {
@@ -540,8 +545,7 @@ fn group(gpu: &Gpu, layout_of: &wgpu::ComputePipeline, g: u32, resources: &[(u32
             },
         })
         .collect();
-    let layout = layout_of.get_bind_group_layout(g);
-    gpu.device.create_bind_group(&wgpu::BindGroupDescriptor { label: None, layout: &layout, entries: &entries })
+    gpu.device.create_bind_group(&wgpu::BindGroupDescriptor { label: None, layout, entries: &entries })
 }
 
 /// Records one dispatch of `pipeline` over `threads` with its bind groups 0, 1 and 2.
@@ -586,18 +590,11 @@ fn rasterize(
     let target = texture(VISIBILITY, wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::TEXTURE_BINDING);
     let view = target.create_view(&Default::default());
     let depth = scene.map(|_| texture(DEPTH, wgpu::TextureUsages::RENDER_ATTACHMENT).create_view(&Default::default()));
-    let bind = |g: u32, entries: &[(u32, &wgpu::Buffer)]| {
-        let entries: Vec<wgpu::BindGroupEntry> = entries
-            .iter()
-            .map(|(binding, b)| wgpu::BindGroupEntry { binding: *binding, resource: b.as_entire_binding() })
-            .collect();
-        let layout = pipeline.get_bind_group_layout(g);
-        gpu.device.create_bind_group(&wgpu::BindGroupDescriptor { label: None, layout: &layout, entries: &entries })
-    };
+    let bind = |g: u32, resources: &[(u32, Res)]| group_of(gpu, &pipeline.get_bind_group_layout(g), resources);
     let groups = [
         bind(0, &[]),
-        scene.map_or_else(|| bind(1, &[]), |rp| bind(1, &[(0, rp)])),
-        bind(2, &[(0, mesh[0]), (1, mesh[1])]),
+        scene.map_or_else(|| bind(1, &[]), |rp| bind(1, &[(0, Res::Buffer(rp))])),
+        bind(2, &[(0, Res::Buffer(mesh[0])), (1, Res::Buffer(mesh[1]))]),
     ];
     let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
         label: Some("rasterize"),

@@ -43,6 +43,16 @@ fn surface(k: u32, b: vec3<f32>) -> Hit {
     return Hit(true, p, n, t, uv);
 }
 
+// The surface the camera pass (raster.wgsl) found at pixel px, whose ray runs along d, with its normal turned towards
+// the viewer (Mesh::intersect).
+fn camera_surface(px: u32, d: vec3<f32>) -> Hit {
+    var hit = visible(textureLoad(visibility_target, vec2<u32>(px % rp.width, px / rp.width), 0));
+    if dot(hit.n, d) > 0.0 {
+        hit.n = -hit.n;
+    }
+    return hit;
+}
+
 // The surface point a visibility texel (triangle, b1, b2, covered) records; found = false where nothing is.
 fn visible(texel: vec4<f32>) -> Hit {
     if texel.w == 0.0 {

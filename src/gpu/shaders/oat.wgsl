@@ -225,9 +225,7 @@ fn render_oat(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgr
     if hit.found && dot(-ray[1], hit.n) > 0.0 {
         rgb = shade(hit, -ray[1]);
     }
-    image[3u * px] = rgb.x;
-    image[3u * px + 1u] = rgb.y;
-    image[3u * px + 2u] = rgb.z;
+    store(px, rgb);
 }
 
 // Meshes (mesh.wgsl): the light map's dilation state (rgb, covered) in and out.
@@ -295,26 +293,18 @@ fn store_light_map(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_w
     }
 }
 
-// render_rows for a mesh: the surface the camera pass found at the pixel, its normal turned towards the viewer
-// (Mesh::intersect).
+// render_rows for a mesh: the surface the camera pass found at the pixel (camera_surface).
 @compute @workgroup_size(64)
 fn render_oat_mesh(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups) groups: vec3<u32>) {
     let px = thread_index(gid, groups);
     if px >= rp.width * rp.height {
         return;
     }
-    var hit = visible(textureLoad(visibility_target, vec2<u32>(px % rp.width, px / rp.width), 0));
     let d = camera_ray(px)[1];
+    let hit = camera_surface(px, d);
     var rgb = vec3<f32>(0.0);
-    if hit.found {
-        if dot(hit.n, d) > 0.0 {
-            hit.n = -hit.n;
-        }
-        if dot(-d, hit.n) > 0.0 {
-            rgb = shade(hit, -d);
-        }
+    if hit.found && dot(-d, hit.n) > 0.0 {
+        rgb = shade(hit, -d);
     }
-    image[3u * px] = rgb.x;
-    image[3u * px + 1u] = rgb.y;
-    image[3u * px + 2u] = rgb.z;
+    store(px, rgb);
 }

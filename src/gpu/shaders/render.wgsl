@@ -19,12 +19,6 @@ fn shade_lights(hit: Hit, d: vec3<f32>, base: u32) -> vec3<f32> {
     return rgb;
 }
 
-fn store(px: u32, rgb: vec3<f32>) {
-    image[3u * px] = rgb.x;
-    image[3u * px + 1u] = rgb.y;
-    image[3u * px + 2u] = rgb.z;
-}
-
 // The sphere or the plane.
 @compute @workgroup_size(64)
 fn render(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups) groups: vec3<u32>) {
@@ -41,21 +35,17 @@ fn render(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups
     store(px, rgb);
 }
 
-// A mesh: the surface raster.wgsl's camera pass found at the pixel, its normal turned towards the viewer
-// (Mesh::intersect).
+// A mesh: the surface the camera pass found at the pixel.
 @compute @workgroup_size(64)
 fn render_mesh(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups) groups: vec3<u32>) {
     let px = thread_index(gid, groups);
     if px >= rp.width * rp.height {
         return;
     }
-    var hit = visible(textureLoad(visibility_target, vec2<u32>(px % rp.width, px / rp.width), 0));
     let d = camera_ray(px)[1];
+    let hit = camera_surface(px, d);
     var rgb = vec3<f32>(0.0);
     if hit.found {
-        if dot(hit.n, d) > 0.0 {
-            hit.n = -hit.n;
-        }
         rgb = shade_lights(hit, d, px * params.channels);
     }
     store(px, rgb);

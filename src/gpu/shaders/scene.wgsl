@@ -37,6 +37,13 @@ fn thread_index(gid: vec3<u32>, groups: vec3<u32>) -> u32 {
     return gid.y * groups.x * 64u + gid.x;
 }
 
+// The radiance of pixel px into the image.
+fn store(px: u32, rgb: vec3<f32>) {
+    image[3u * px] = rgb.x;
+    image[3u * px + 1u] = rgb.y;
+    image[3u * px + 2u] = rgb.z;
+}
+
 // Scene::ray: the camera ray (origin, unit direction) through the centre of pixel px.
 fn camera_ray(px: u32) -> array<vec3<f32>, 2> {
     let i = px % rp.width;
