@@ -19,6 +19,7 @@ if not os.environ.get("DRJIT_LIBLLVM_PATH"):
     os.environ["DRJIT_LIBLLVM_PATH"] = find_libllvm() or "/nonexistent/libLLVM-16-or-newer.so"
 
 import drjit as dr  # noqa: E402
+import lamina  # noqa: E402
 import mitsuba as mi  # noqa: E402
 from hypothesis import settings  # noqa: E402
 
@@ -58,6 +59,18 @@ def oren_nayar_albedo_limits(sigma: float) -> tuple[float, float]:
     s2 = sigma * sigma
     a, b = 1 - 0.5 * s2 / (s2 + 0.33), 0.45 * s2 / (s2 + 0.09)
     return a, a + b / 2
+
+
+def uv_sphere_mesh(lat: int, lon: int):
+    """A latitude-longitude unit sphere mesh of lat x lon quads (normals = positions, the analytic sphere's uv
+    chart)."""
+    th, ph = np.meshgrid(np.linspace(0, np.pi, lat + 1), np.linspace(-np.pi, np.pi, lon + 1), indexing="ij")
+    p = np.stack([np.sin(th) * np.sin(ph), np.cos(th), np.sin(th) * np.cos(ph)], -1).reshape(-1, 3)
+    uv = np.stack([0.5 + ph / (2 * np.pi), th / np.pi], -1).reshape(-1, 2)
+    idx = np.arange((lat + 1) * (lon + 1)).reshape(lat + 1, lon + 1)
+    a, b, c, d = idx[:-1, :-1], idx[:-1, 1:], idx[1:, :-1], idx[1:, 1:]
+    tris = np.concatenate([np.stack([a, c, b], -1).reshape(-1, 3), np.stack([b, c, d], -1).reshape(-1, 3)])
+    return lamina.Mesh(p, tris, normals=p, uvs=uv)
 
 
 def random_hemisphere(rng: np.random.Generator, n: int, min_cos: float = 0.02) -> np.ndarray:

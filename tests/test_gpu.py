@@ -10,6 +10,7 @@ import os
 import lamina
 import numpy as np
 import pytest
+from conftest import uv_sphere_mesh
 from hypothesis import assume, example, given, settings
 from hypothesis import strategies as st
 from lamina import gpu, materials
@@ -173,17 +174,6 @@ def test_device_choice_and_errors():
         stack.eval(wi, wo, device="gpu", lut="fitted")
 
 
-def _uv_sphere(lat: int = 32, lon: int = 64) -> lamina.Mesh:
-    """A latitude-longitude unit sphere mesh (normals = positions, the analytic sphere's uv chart)."""
-    th, ph = np.meshgrid(np.linspace(0, np.pi, lat + 1), np.linspace(-np.pi, np.pi, lon + 1), indexing="ij")
-    p = np.stack([np.sin(th) * np.sin(ph), np.cos(th), np.sin(th) * np.cos(ph)], -1).reshape(-1, 3)
-    uv = np.stack([0.5 + ph / (2 * np.pi), th / np.pi], -1).reshape(-1, 2)
-    idx = np.arange((lat + 1) * (lon + 1)).reshape(lat + 1, lon + 1)
-    a, b, c, d = idx[:-1, :-1], idx[:-1, 1:], idx[1:, :-1], idx[1:, 1:]
-    tris = np.concatenate([np.stack([a, c, b], -1).reshape(-1, 3), np.stack([b, c, d], -1).reshape(-1, 3)])
-    return lamina.Mesh(p, tris, normals=p, uvs=uv)
-
-
 @pytest.mark.parametrize(
     "material,model",
     [
@@ -205,7 +195,7 @@ def test_renderer_matches_the_cpu_renderer(material, model, shape, camera):
     whose 3 x 3 neighbourhood is not entirely covered on the CPU; the rest, 34% of the image, agrees to ≤ 7.3e-6)."""
     stack = materials.preset(material) if material in materials.PRESETS else materials.suite(material)
     if shape == "mesh":
-        shape = _uv_sphere()
+        shape = uv_sphere_mesh(32, 64)
     lights = [
         lamina.DirectionalLight((-0.4, 0.5, 0.8), (2.0, 1.5, 1.0)),
         lamina.PointLight((1.5, 1.0, 2.5), (8.0, 8.0, 6.0)),

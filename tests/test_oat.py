@@ -7,6 +7,7 @@ from __future__ import annotations
 import lamina
 import numpy as np
 import pytest
+from conftest import uv_sphere_mesh
 from lamina import oat
 
 #: The chapter's 12 unit-disc taps (Oat 2006, Listing 2), as printed.
@@ -141,21 +142,10 @@ def test_light_map_of_the_sphere_is_n_dot_l():
     np.testing.assert_allclose(lmap[..., 0], 2.0 * np.maximum(n @ light, 0) / np.pi, atol=1e-12)
 
 
-def _uv_sphere(lat: int = 48, lon: int = 96) -> lamina.Mesh:
-    """A latitude-longitude sphere mesh with the analytic sphere's uv chart."""
-    th, ph = np.meshgrid(np.linspace(0, np.pi, lat + 1), np.linspace(-np.pi, np.pi, lon + 1), indexing="ij")
-    p = np.stack([np.sin(th) * np.sin(ph), np.cos(th), np.sin(th) * np.cos(ph)], -1).reshape(-1, 3)
-    uv = np.stack([0.5 + ph / (2 * np.pi), th / np.pi], -1).reshape(-1, 2)
-    idx = np.arange((lat + 1) * (lon + 1)).reshape(lat + 1, lon + 1)
-    a, b, c, d = idx[:-1, :-1], idx[:-1, 1:], idx[1:, :-1], idx[1:, 1:]
-    tris = np.concatenate([np.stack([a, c, b], -1).reshape(-1, 3), np.stack([b, c, d], -1).reshape(-1, 3)])
-    return lamina.Mesh(p, tris, normals=p, uvs=uv)
-
-
 def test_mesh_light_map_is_rasterized_and_dilated():
     """A uv-sphere mesh's light map, rasterized in uv, matches the analytic sphere's where the mesh's facets are
     close to it; dilation fills every texel."""
-    mesh = _uv_sphere()
+    mesh = uv_sphere_mesh(48, 96)
     m = _flat(size=64)
     ours = lamina._lamina.oat_light_map(m.outer_normal, mesh._spec(), [LIGHT._spec()], 4)
     sphere = lamina._lamina.oat_light_map(m.outer_normal, "sphere", [LIGHT._spec()], 0)
@@ -181,7 +171,7 @@ def test_variants_agree_on_the_organic_sphere(device):
 
 
 POINT = lamina.PointLight((1.5, 1.0, 2.5), (6.0, 5.0, 4.0))
-MESH = _uv_sphere()
+MESH = uv_sphere_mesh(48, 96)
 PERSPECTIVE = ((0.5, 0.8, 3.0), (0.0, 0.0, 0.0), 45.0)
 
 
