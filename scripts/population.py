@@ -34,17 +34,21 @@ ASCENT_GRID = [(k, q, qn) for k in (3, 5) for q in (0.6, 0.7, 0.8) for qn in (0.
 LOW = np.array(lamina.reference.SUITE_THETAS) <= 80.0
 
 
-def truth(d: dict, rows: list) -> list:
-    """Per stack: whether each candidate represents it, and every candidate's measured error (as `rank` labels them)."""
+def truth(d: dict, rows: list, leave_one_out: bool) -> list:
+    """Per stack: its features, whether each candidate represents it, every candidate's measured error (as `rank`
+    labels them), and whether it lies inside the training population (`covered`; with leave_one_out, `rows` is the
+    training set and each stack is judged without itself). None of it depends on the predictor's settings."""
     gt = d["ground_truth_samples"]
+    train = np.array([r["features"] for r in d["train"]])
     out = []
-    for r in rows:
+    for i, r in enumerate(rows):
         can = {label: r["lobe_error"][label] is not None for label, _, _ in CANDIDATES}
         err = {label: atlas.candidate_error(r, label, model, options, gt) for label, model, options in CANDIDATES}
         for n in d["reference_samples"]:
             label = f"reference, {n} paths"
             err[label] = atlas.candidate_error(r, label, "reference", {"samples": n}, gt)
-        out.append((np.array(r["features"]), can, err))
+        x = np.array(r["features"])
+        out.append((x, can, err, covered(np.delete(train, i, axis=0) if leave_one_out else train, x)))
     return out
 
 
@@ -53,13 +57,11 @@ def outcomes(d: dict, known: list, leave_one_out: bool) -> dict:
     1.25x the cheapest candidate within tol; None when no candidate is within tol). With leave_one_out, `known` is
     d's own training set and each stack is predicted without itself."""
     w = LOW / LOW.sum()
-    x = np.array([f for f, _, _ in known])
-    dist = distances(d, x)
+    dist = distances(d, np.array([k[0] for k in known]))
     if leave_one_out:
         np.fill_diagonal(dist, np.inf)
     out = {tol: [] for tol in TOLERANCES}
-    for i, (_, can, err) in enumerate(known):
-        inside = covered(np.delete(d["x"], i, axis=0) if leave_one_out else d["x"], x[i])
+    for i, (_, can, err, inside) in enumerate(known):
         ranked = rank(d, dist[i], can, w, inside)
         for tol in TOLERANCES:
             fits = [c for c in ranked if c[3] <= tol]
@@ -86,7 +88,7 @@ def margin(d: dict, known: list, weights, k: int, q: float, qn: float) -> float:
 def fit(d: dict) -> tuple:
     """(weights, k, quantile, noise quantile) maximizing the leave-one-out `margin` on the training set, and the
     table of every (k, q, qn)'s margin at the fitted weights."""
-    known = truth(d, d["train"])
+    known = truth(d, d["train"], leave_one_out=True)
     best = lambda wts: max((margin(d, known, wts, *s), s) for s in ASCENT_GRID)  # noqa: E731
     weights = list(START_WEIGHTS)
     current, _ = best(weights)
@@ -163,7 +165,7 @@ def report(data: dict, table: list, everything: dict) -> None:
         "(goal ≥ 80%) | no candidate within tolerance | choices |",
         "|---:|---:|---:|---:|---|",
     ]
-    held_out = outcomes(d, truth(d, data["held_out"]), leave_one_out=False)
+    held_out = outcomes(d, truth(d, data["held_out"], leave_one_out=False), leave_one_out=False)
     for tol in TOLERANCES:
         o = held_out[tol]
         within, efficient, none = rates(o)
