@@ -65,7 +65,7 @@ pub struct Gpu {
     queue: wgpu::Queue,
     pipelines: Vec<wgpu::ComputePipeline>,
     renderers: Vec<[wgpu::ComputePipeline; 2]>,
-    oat: Vec<wgpu::ComputePipeline>,
+    oat: [wgpu::ComputePipeline; 6],
     raster: [wgpu::RenderPipeline; 2],
 }
 
@@ -167,7 +167,7 @@ async fn create() -> std::result::Result<Gpu, String> {
         .iter()
         .map(|(name, _)| ["render", "render_mesh"].map(|e| pipeline(name, compose_render(name).expect("listed"), e)))
         .collect();
-    let oat = oat::KERNELS.iter().map(|entry| pipeline("oat", oat::compose(), entry)).collect();
+    let oat = oat::KERNELS.map(|entry| pipeline("oat", oat::compose(), entry));
     let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
         label: Some("raster"),
         source: wgpu::ShaderSource::Wgsl(compose_raster().into()),

@@ -22,12 +22,6 @@ pub fn compose() -> String {
 /// Oat's kernels, in the order of Gpu::oat.
 pub const KERNELS: [&str; 6] =
     ["light_map", "render_oat", "light_map_mesh", "dilate", "store_light_map", "render_oat_mesh"];
-const LIGHT_MAP: usize = 0;
-const RENDER: usize = 1;
-const LIGHT_MAP_MESH: usize = 2;
-const DILATE: usize = 3;
-const STORE: usize = 4;
-const RENDER_MESH: usize = 5;
 
 /// The material's parameters in the layout of `OatParams`.
 fn words(m: &Material) -> [u32; 8] {
@@ -90,7 +84,7 @@ pub fn render(materials: &[Arc<Prepared>], scene: &Scene) -> Result<Vec<f32>> {
 type Packed = (Vec<[u32; 4]>, Vec<f32>);
 
 fn render_scoped(gpu: &'static Gpu, materials: &[Arc<Prepared>], packed: &[Packed], scene: &Scene) -> Result<Vec<f32>> {
-    let k = &gpu.oat;
+    let [light_map, render, light_map_mesh, dilate, store, render_mesh] = &gpu.oat;
     let pixels = scene.width * scene.height;
     let (render_params, lights) = scene_buffers(gpu, scene);
     let size = (4 * 3 * pixels) as u64;
@@ -124,11 +118,11 @@ fn render_scoped(gpu: &'static Gpu, materials: &[Arc<Prepared>], packed: &[Packe
         match (&mesh, &seen) {
             (None, _) => {
                 if m.variant == Variant::Full {
-                    let p = &k[LIGHT_MAP];
+                    let p = light_map;
                     let g = [group(gpu, p, 0, &[tex, texel]), scene_group(p, false)];
                     dispatch(&mut encoder, p, &[&g[0], &g[1]], texels_n);
                 }
-                let p = &k[RENDER];
+                let p = render;
                 let g = [group(gpu, p, 0, &[op, tex, texel]), scene_group(p, true)];
                 dispatch(&mut encoder, p, &[&g[0], &g[1]], pixels);
             }
@@ -139,7 +133,7 @@ fn render_scoped(gpu: &'static Gpu, materials: &[Arc<Prepared>], packed: &[Packe
                     let uv = rasterize(gpu, &mut encoder, &gpu.raster[0], size, [vertices, triangles], *n, None);
                     let state =
                         [0, 1].map(|_| buffer(gpu, "dilation", 16 * texels_n as u64, wgpu::BufferUsages::STORAGE));
-                    let p = &k[LIGHT_MAP_MESH];
+                    let p = light_map_mesh;
                     let g = [
                         group(gpu, p, 0, &[tex, texel]),
                         scene_group(p, false),
@@ -156,7 +150,7 @@ fn render_scoped(gpu: &'static Gpu, materials: &[Arc<Prepared>], packed: &[Packe
                         ),
                     ];
                     dispatch(&mut encoder, p, &[&g[0], &g[1], &g[2]], texels_n);
-                    let p = &k[DILATE];
+                    let p = dilate;
                     for pass in 0..m.dilate {
                         let (from, to) = (&state[pass % 2], &state[(pass + 1) % 2]);
                         let g = [
@@ -166,7 +160,7 @@ fn render_scoped(gpu: &'static Gpu, materials: &[Arc<Prepared>], packed: &[Packe
                         ];
                         dispatch(&mut encoder, p, &[&g[0], &g[1], &g[2]], texels_n);
                     }
-                    let p = &k[STORE];
+                    let p = store;
                     let g = [
                         group(gpu, p, 0, &[(1, Res::Buffer(&textures)), (2, Res::Buffer(&texels))]),
                         group(gpu, p, 1, &[]),
@@ -176,7 +170,7 @@ fn render_scoped(gpu: &'static Gpu, materials: &[Arc<Prepared>], packed: &[Packe
                     views.push(uv);
                     buffers.extend(state);
                 }
-                let p = &k[RENDER_MESH];
+                let p = render_mesh;
                 let g = [
                     group(gpu, p, 0, &[op, tex, texel]),
                     scene_group(p, true),
