@@ -20,3 +20,7 @@ pub mod tables;
 
 #[cfg(feature = "python")]
 mod python;
+
+/// A fingerprint of the sources this build was made from (build.rs): part of every on-disk cache key, so that a
+/// table or reference cached by another build of lamina is never read back.
+pub const SOURCE_HASH: &str = env!("LAMINA_SOURCE_HASH");

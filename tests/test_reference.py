@@ -337,6 +337,10 @@ def test_eval_reference_and_cache(tmp_path, monkeypatch):
         cache_key(stack, wo, wi, 3000, 0),
     }
     assert len(keys) == 5
+    # Another build of lamina (other sources, so other numerics) keys the same request elsewhere: a cache written by
+    # one build is never read back by another.
+    monkeypatch.setattr(lamina.reference._lamina, "SOURCE_HASH", "another build")
+    assert cache_key(stack, wi, wo, 3000, 0) not in keys
 
 
 def test_ctrl_c_stops_a_long_run_cleanly():

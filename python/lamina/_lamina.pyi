@@ -11,6 +11,7 @@ __all__ = [
     "MODELS",
     "REFERENCE_MAX_DEPTH",
     "OAT_POISSON_DISC",
+    "SOURCE_HASH",
     "__version__",
     "belcour_lobes",
     "check_layer",
@@ -59,6 +60,7 @@ MODELS: list[str]
 REFERENCE_MAX_DEPTH: int
 OAT_POISSON_DISC: list[list[float]]
 __version__: str
+SOURCE_HASH: str
 
 def check_layer(layer: dict, name: str) -> None: ...
 def check_stack(layers: list[dict], ext_ior: float, model: str | None = None) -> int: ...

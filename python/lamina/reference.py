@@ -38,7 +38,7 @@ def cache_dir() -> Path:
 
 def cache_key(stack, wi, wo, samples: int, seed: int, **options) -> str:
     """Hash of everything a reference result depends on: the resolved stack, directions, sample count, seed,
-    options and the lamina version."""
+    options and the build's source fingerprint (_lamina.SOURCE_HASH: a cache written by another build is not read)."""
     h = hashlib.sha256()
     h.update(
         json.dumps(
@@ -51,7 +51,7 @@ def cache_key(stack, wi, wo, samples: int, seed: int, **options) -> str:
                     k: (np.asarray(v).tolist() if k == "wavelengths" and v is not None else v)
                     for k, v in sorted(options.items())
                 },
-                _lamina.__version__,
+                _lamina.SOURCE_HASH,
             ]
         ).encode()
     )

@@ -19,6 +19,7 @@ fn _lamina(m: &Bound<'_, PyModule>) -> PyResult<()> {
     let names: Vec<&str> = crate::models::CATALOGUE.iter().map(|i| i.name).collect();
     m.add("MODELS", names)?;
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
+    m.add("SOURCE_HASH", crate::SOURCE_HASH)?;
     m.add("REFERENCE_MAX_DEPTH", crate::reference::MAX_DEPTH)?;
     m.add("OAT_POISSON_DISC", crate::render::oat::POISSON_DISC.to_vec())?;
     m.add_function(wrap_pyfunction!(api::check_layer, m)?)?;

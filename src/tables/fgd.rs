@@ -20,8 +20,6 @@ const ETA_MIN: f64 = 0.02;
 const ETA_MAX: f64 = 8.0;
 const KAPPA_MAX: f64 = 12.0;
 const QUADRATURE: usize = 256;
-/// Bump when the table's definition changes: it is part of the cache file name.
-const VERSION: u32 = 1;
 
 pub struct Fgd {
     grid: Grid<4, 1>,
@@ -89,7 +87,7 @@ impl Fgd {
 pub fn fgd() -> &'static Fgd {
     static TABLE: OnceLock<Fgd> = OnceLock::new();
     TABLE.get_or_init(|| {
-        let name = format!("fgd-v{VERSION}-{N_MU}x{N_ALPHA}x{N_ETA}x{N_KAPPA}.f32");
+        let name = format!("fgd-{N_MU}x{N_ALPHA}x{N_ETA}x{N_KAPPA}.f32");
         let data = super::cached(&name, N_MU * N_ALPHA * N_ETA * N_KAPPA, || Fgd::generate().grid.data().to_vec());
         Fgd { grid: Grid::new([N_MU, N_ALPHA, N_ETA, N_KAPPA], data) }
     })

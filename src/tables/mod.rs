@@ -20,12 +20,12 @@ pub fn visible_normals(mf: &Microfacet, wi: DVec3, n: usize) -> Vec<DVec3> {
         .collect()
 }
 
-/// Where tables are cached: $LAMINA_CACHE/tables, else ~/.cache/lamina/tables.
+/// Where this build's tables are cached: $LAMINA_CACHE/tables/<source hash>, else ~/.cache/lamina/tables/<source hash>.
 fn cache_dir() -> Option<PathBuf> {
     let base = std::env::var_os("LAMINA_CACHE")
         .map(PathBuf::from)
         .or_else(|| std::env::var_os("HOME").map(|h| PathBuf::from(h).join(".cache").join("lamina")))?;
-    Some(base.join("tables"))
+    Some(base.join("tables").join(crate::SOURCE_HASH))
 }
 
 /// A table of `len` f32 values: read from the cache file `name` when present and of the right size, else

@@ -29,7 +29,6 @@ pub const N_ETA: usize = 48;
 pub const ETA_MIN: f64 = 0.25;
 pub const ETA_MAX: f64 = 4.0;
 const QUADRATURE: usize = 512;
-const VERSION: u32 = 4;
 /// Values per table node: t, s / sin θ, p.
 const STRIDE: usize = 3;
 const T_PARAMS: usize = 5;
@@ -232,15 +231,11 @@ pub fn steinberg() -> &'static Steinberg {
     static TABLE: OnceLock<Steinberg> = OnceLock::new();
     TABLE.get_or_init(|| {
         let dims = format!("{N_MU}x{N_ALPHA}x{N_ETA}");
-        let table = cached(
-            &format!("steinberg-v{VERSION}-{dims}.f32"),
-            N_MU * N_ALPHA * N_ETA * STRIDE,
-            Steinberg::generate_table,
-        );
-        let fits =
-            cached(&format!("steinberg-fit-v{VERSION}-{dims}.f32"), N_ALPHA * N_ETA * (T_PARAMS + S_PARAMS), || {
-                Steinberg::generate_fits(&table)
-            });
+        let table =
+            cached(&format!("steinberg-{dims}.f32"), N_MU * N_ALPHA * N_ETA * STRIDE, Steinberg::generate_table);
+        let fits = cached(&format!("steinberg-fit-{dims}.f32"), N_ALPHA * N_ETA * (T_PARAMS + S_PARAMS), || {
+            Steinberg::generate_fits(&table)
+        });
         Steinberg { table: Grid::new([N_MU, N_ALPHA, N_ETA], table), fits }
     })
 }
