@@ -18,7 +18,12 @@ from docs_section import write_section
 from lamina import gpu, materials
 
 N = int(os.environ.get("LAMINA_BENCH_GPU_N", 16_000_000))
-CASES = [("gold, 1 layer", "gold", "microfacet"), ("coated copper, 2 layers", "rough-coat-rough-copper", "belcour")]
+CASES = [
+    ("gold, 1 layer", "gold", "microfacet"),
+    ("coated copper, 2 layers", "rough-coat-rough-copper", "belcour"),
+    ("coated copper, 2 layers", "rough-coat-rough-copper", "steinberg"),
+    ("coated copper, 2 layers", "rough-coat-rough-copper", "weidlich_wilkie"),
+]
 
 
 def stack(name: str):

@@ -1,5 +1,5 @@
 """The wgpu path against the CPU: every microfacet configuration, Belcour on the suite with its options, random
-stacks, spectral channels and inputs longer than one dispatch agree to 1e-4 relative on values above 1e-6 of the peak
+stacks (Belcour, Steinberg, Weidlich–Wilkie), spectral and dispersive channels and inputs longer than one dispatch agree to 1e-4 relative on values above 1e-6 of the peak
 (the issue's criterion; the float32 shader against the float64 core measures about 1e-5 at worst), plus where f
 is ill-conditioned in float32 what 4-ulp changes of the inputs alone move the float64 result by. Runs on whatever
 adapter wgpu finds: lavapipe in CI (make test installs it when root). Without an adapter these tests fail, saying how
@@ -100,8 +100,47 @@ def test_belcour_options(material, options):
     assert_parity(materials.suite(material), "belcour", **options)
 
 
+@pytest.mark.parametrize("model", ["steinberg", "weidlich_wilkie"])
+@pytest.mark.parametrize("material", sorted(materials.SUITE) + ["car-paint"])
+def test_single_pass_suite(material, model):
+    stack = materials.car_paint() if material == "car-paint" else materials.suite(material)
+    assert_parity(stack, model)
+
+
+@pytest.mark.parametrize(
+    "model,options",
+    [
+        ("steinberg", {"lut": "fitted"}),
+        ("steinberg", {"fresnel": "schlick", "g2": "v_cavity"}),
+        ("steinberg", {"clamp_roughness": False, "eta2": False}),
+        ("steinberg", {"interreflection": True}),
+        ("weidlich_wilkie", {"precomputed": True}),
+        ("weidlich_wilkie", {"distribution": "ggx", "g2": "height_correlated", "fresnel": "lazanyi"}),
+        ("weidlich_wilkie", {"clamp_roughness": False, "eta2": False, "interreflection": True}),
+    ],
+)
+@pytest.mark.parametrize("material", ["anisotropic-coat-metal", "varnished-diffuse", "three-layer"])
+def test_single_pass_options(material, model, options):
+    assert_parity(materials.suite(material), model, **options)
+
+
+def test_single_pass_spectral_and_dispersive():
+    """Spectral channels, and a dispersive coat (an IOR per channel: one pass per channel on the CPU too)."""
+    wl = np.arange(400.0, 701.0, 20.0)
+    for model in ("steinberg", "weidlich_wilkie"):
+        assert_parity(materials.preset("coated-copper"), model, wavelengths=wl)
+        dispersive = lamina.Stack(
+            [
+                lamina.Dielectric((1.45, 1.5, 1.6), 0.2, thickness=0.5, sigma_a=(0.1, 0.3, 0.6)),
+                lamina.Diffuse((0.6, 0.4, 0.2), roughness=0.3),
+            ]
+        )
+        assert_parity(dispersive, model)
+
+
 @settings(max_examples=15, deadline=None)
 @given(
+    model=st.sampled_from(["belcour", "steinberg", "weidlich_wilkie"]),
     ior=st.floats(1.05, 2.5),
     # Smooth, or at least 0.01 along each axis: a lobe of roughness α (≥ 1e-4) amplifies the float32 rounding of the
     # directions (6e-8) by 1/α, so below 0.01 float32 cannot hold 1e-4.
@@ -111,14 +150,14 @@ def test_belcour_options(material, options):
     base=st.tuples(st.floats(0.02, 0.9), st.floats(0.02, 0.9)),
     seed=st.integers(0, 1000),
 )
-def test_random_belcour_stacks(ior, coat, angle, sigma_a, base, seed):
+def test_random_layered_stacks(model, ior, coat, angle, sigma_a, base, seed):
     stack = lamina.Stack(
         [
             lamina.Dielectric(ior, coat, angle=angle, thickness=1.0, sigma_a=sigma_a),
             lamina.Conductor((0.2, 0.9, 1.1), (3.0, 2.6, 2.3), base, angle=-angle),
         ]
     )
-    assert_parity(stack, "belcour", n=2000, seed=seed)
+    assert_parity(stack, model, n=2000, seed=seed)
 
 
 @settings(max_examples=25, deadline=None)
@@ -163,7 +202,9 @@ def test_device_choice_and_errors():
     with pytest.raises(ValueError, match="device must be one of"):
         stack.eval(wi, wo, device="tpu")
     with pytest.raises(ValueError, match="no GPU implementation yet"):
-        materials.suite("gold-clearcoat").eval(wi, wo, "steinberg", device="gpu")
+        materials.suite("gold-clearcoat").eval(wi, wo, "albedo_scaling", device="gpu")
+    with pytest.raises(ValueError, match="per-element inputs run on the CPU only"):
+        materials.car_paint().eval(wi, wo, "weidlich_wilkie", device="gpu", flake_normal=wi)
     with pytest.raises(ValueError, match="tabulated=False runs on the CPU only"):
         materials.suite("gold-clearcoat").eval(wi, wo, "belcour", device="gpu", tabulated=False)
     with pytest.raises(ValueError, match="wi contains a zero-length direction"):
@@ -181,6 +222,8 @@ def test_device_choice_and_errors():
         ("brushed-aluminium", "microfacet"),
         ("anisotropic-coat-metal", "belcour"),
         ("varnished-diffuse", "belcour"),
+        ("three-layer", "steinberg"),
+        ("car-paint", "weidlich_wilkie"),
     ],
 )
 @pytest.mark.parametrize(
@@ -194,6 +237,7 @@ def test_renderer_matches_the_cpu_renderer(material, model, shape, camera):
     so they agree but for silhouette pixels, where the two may pick different triangles; those are left out (pixels
     whose 3 x 3 neighbourhood is not entirely covered on the CPU; the rest, 34% of the image, agrees to ≤ 7.3e-6)."""
     stack = materials.preset(material) if material in materials.PRESETS else materials.suite(material)
+    stack = materials.car_paint() if material == "car-paint" else stack
     if shape == "mesh":
         shape = uv_sphere_mesh(32, 64)
     lights = [

@@ -3,7 +3,9 @@
 //! `cargo test` validates every composed shader with naga, without a GPU; tests/test_gpu.py checks parity with the
 //! CPU on a real adapter (lavapipe in CI).
 //!
-//! Models on the GPU so far: `microfacet` (every option) and `belcour` (tabulated, every other option). A model's
+//! Models on the GPU: `microfacet`, `steinberg` and `weidlich_wilkie` (every option; the last two share
+//! shaders/single_pass.wgsl's walk) and `belcour` (tabulated, every other option). Per-element inputs (car-paint
+//! flakes, the patina mask) run on the CPU only. A model's
 //! tables are uploaded once per stack and options and kept (`uploaded`). Inputs of any length are split into
 //! dispatches of at most CHUNK pairs. The renderer (`render`, shaders/scene.wgsl and render.wgsl) renders stacks,
 //! and Oat 2006's gooey layers (`oat`, shaders/oat.wgsl), on the sphere, the plane and meshes (shaders/mesh.wgsl,
@@ -12,10 +14,12 @@
 pub mod oat;
 
 use crate::error::{value_error, Error, Result};
-use crate::models::{belcour, microfacet, Options};
+use crate::models::single_pass::SpLayer;
+use crate::models::{belcour, microfacet, steinberg, weidlich_wilkie, Options};
 use crate::optics::distribution::{Distribution, G2Form, Microfacet};
 use crate::optics::fresnel::FresnelForm;
 use crate::stack::Stack;
+use crate::tables::elek::{beckmann_table, FRESNEL_SAMPLES};
 use std::sync::{Arc, Mutex, OnceLock};
 use wgpu::util::DeviceExt;
 
@@ -30,8 +34,15 @@ pub const MESH: &str = include_str!("shaders/mesh.wgsl");
 /// The mesh's rasterization into visibility targets, composed after MESH.
 pub const RASTER: &str = include_str!("shaders/raster.wgsl");
 /// The models' shaders, by model name: each is composed after OPTICS.
-pub const MODELS: &[(&str, &str)] =
-    &[("microfacet", include_str!("shaders/microfacet.wgsl")), ("belcour", include_str!("shaders/belcour.wgsl"))];
+pub const MODELS: &[(&str, &str)] = &[
+    ("microfacet", include_str!("shaders/microfacet.wgsl")),
+    ("belcour", include_str!("shaders/belcour.wgsl")),
+    ("steinberg", concat!(include_str!("shaders/single_pass.wgsl"), "\n", include_str!("shaders/steinberg.wgsl"))),
+    (
+        "weidlich_wilkie",
+        concat!(include_str!("shaders/single_pass.wgsl"), "\n", include_str!("shaders/weidlich_wilkie.wgsl")),
+    ),
+];
 
 /// A model's complete shader source: the primitives, then the model.
 pub fn compose(model: &str) -> Option<String> {
@@ -194,6 +205,86 @@ fn g2_code(g2: G2Form) -> u32 {
     }
 }
 
+fn fresnel_code(form: FresnelForm) -> u32 {
+    match form {
+        FresnelForm::Exact => 0,
+        FresnelForm::Schlick => 1,
+        FresnelForm::Lazanyi => 2,
+    }
+}
+
+fn dist_code(dist: Distribution) -> u32 {
+    match dist {
+        Distribution::Ggx => 0,
+        Distribution::Beckmann => 1,
+    }
+}
+
+/// The single-pass layers as single_pass.wgsl reads them, and the nodes per Fresnel table (0: none): per layer 9
+/// values (kind: 0 dielectric, 1 conductor, 2 diffuse; the microfacet's distribution, smooth flag, αx, αy, cos φ,
+/// sin φ; thickness; Oren–Nayar σ), then per channel 5 (η, κ, σt, albedo, gain) and Elek's Fresnel table, if any,
+/// as (F, 1 − F) per node.
+fn single_pass_layers(layers: &[SpLayer], channels: usize) -> (Vec<f32>, u32) {
+    let samples =
+        if layers.iter().filter_map(SpLayer::interface).any(|i| !i.table.is_empty()) { FRESNEL_SAMPLES } else { 0 };
+    let smooth = Microfacet::new(Distribution::Ggx, 0.0, 0.0, 0.0);
+    let zeros = vec![0.0; channels];
+    let mut out = Vec::new();
+    for layer in layers {
+        let (kind, mf, thickness, sigma, [eta, kappa, sigma_t, albedo, gain]) = match layer {
+            SpLayer::Dielectric { iface, thickness, sigma_t, albedo } => {
+                (0, &iface.mf, *thickness, 0.0, [&iface.eta, &iface.kappa, sigma_t, albedo, &zeros])
+            }
+            SpLayer::Conductor(iface) => (1, &iface.mf, 0.0, 0.0, [&iface.eta, &iface.kappa, &zeros, &zeros, &zeros]),
+            SpLayer::Diffuse { albedo, sigma, gain } => {
+                (2, &smooth, 0.0, *sigma, [&zeros, &zeros, &zeros, albedo, gain])
+            }
+        };
+        let (cos_phi, sin_phi) = mf.frame();
+        let header = [kind as f64, dist_code(mf.dist) as f64, mf.is_smooth() as u8 as f64, mf.alpha_x, mf.alpha_y];
+        out.extend(header.into_iter().chain([cos_phi, sin_phi, thickness, sigma]).map(|x| x as f32));
+        for c in 0..channels {
+            out.extend([eta[c], kappa[c], sigma_t[c], albedo[c], gain[c]].map(|x| x as f32));
+            let table = layer.interface().and_then(|i| i.table.get(c)).map_or(&[][..], |t| t.samples());
+            out.extend(table.iter().copied().chain(std::iter::repeat(0.0)).take(2 * samples));
+        }
+    }
+    (out, samples as u32)
+}
+
+/// The Steinberg kernel: 16 words in the layout of `Params` in steinberg.wgsl, the layers and the tables.
+pub fn steinberg_kernel(p: &steinberg::Prepared) -> Kernel {
+    use crate::tables::steinberg::{steinberg, ETA_MAX, ETA_MIN, N_ALPHA, N_ETA, N_MU};
+    let walk = &p.walk;
+    let (table, fits) = steinberg().gpu_data();
+    let (layers, fresnel_samples) = single_pass_layers(&walk.layers, p.channels);
+    let words = vec![
+        0,
+        p.channels as u32,
+        walk.layers.len() as u32,
+        g2_code(walk.g2),
+        fresnel_code(walk.fresnel),
+        walk.eta2 as u32,
+        p.fitted as u32,
+        N_MU as u32,
+        N_ALPHA as u32,
+        N_ETA as u32,
+        (ETA_MIN as f32).to_bits(),
+        (ETA_MAX as f32).to_bits(),
+        fresnel_samples,
+        0,
+        0,
+        0,
+    ];
+    Kernel {
+        model: "steinberg",
+        words,
+        count_word: 0,
+        arrays: vec![layers, table.to_vec(), fits.to_vec()],
+        channels: p.channels,
+    }
+}
+
 /// The microfacet kernel: 16 words in the layout of `Params` in microfacet.wgsl, and per channel (eta, k, albedo,
 /// f_int).
 pub fn microfacet_kernel(p: &microfacet::Prepared) -> Kernel {
@@ -214,26 +305,17 @@ pub fn microfacet_kernel(p: &microfacet::Prepared) -> Kernel {
         }
     };
     let (cos_phi, sin_phi) = mf.frame();
-    let fresnel = match fresnel {
-        FresnelForm::Exact => 0,
-        FresnelForm::Schlick => 1,
-        FresnelForm::Lazanyi => 2,
-    };
-    let dist = match mf.dist {
-        Distribution::Ggx => 0,
-        Distribution::Beckmann => 1,
-    };
     let f = |x: f64| (x as f32).to_bits();
     let words = vec![
         kind,
         g2_code(g2),
-        fresnel,
+        fresnel_code(fresnel),
         channels.len() as u32,
         0,
         f(sigma),
         0,
         0,
-        dist,
+        dist_code(mf.dist),
         mf.is_smooth() as u32,
         f(mf.alpha_x),
         f(mf.alpha_y),
@@ -286,11 +368,36 @@ pub fn belcour_kernel(p: &belcour::Prepared) -> Result<Kernel> {
     })
 }
 
+/// The Weidlich–Wilkie kernel: 12 words in the layout of `Params` in weidlich_wilkie.wgsl, the layers (with Elek's
+/// Fresnel tables when precomputed) and Elek's Beckmann table (one unused value when not precomputed).
+pub fn weidlich_wilkie_kernel(p: &weidlich_wilkie::Prepared) -> Kernel {
+    use crate::tables::elek::D_SIZE;
+    let (layers, fresnel_samples) = single_pass_layers(&p.walk.layers, p.channels);
+    let beckmann = if p.precomputed { beckmann_table().samples().to_vec() } else { vec![0.0] };
+    let words = vec![
+        0,
+        p.channels as u32,
+        p.walk.layers.len() as u32,
+        g2_code(p.walk.g2),
+        fresnel_code(p.walk.fresnel),
+        p.walk.eta2 as u32,
+        fresnel_samples,
+        p.precomputed as u32,
+        D_SIZE as u32,
+        0,
+        0,
+        0,
+    ];
+    Kernel { model: "weidlich_wilkie", words, count_word: 0, arrays: vec![layers, beckmann], channels: p.channels }
+}
+
 /// A prepared model's kernel, or why it does not run on the GPU.
 pub fn kernel(model: &str, stack: &Stack, opts: &Options) -> Result<Kernel> {
     match model {
         "microfacet" => Ok(microfacet_kernel(&microfacet::prepare(stack, opts)?)),
         "belcour" => belcour_kernel(&belcour::prepare(stack, opts)?),
+        "steinberg" => Ok(steinberg_kernel(&steinberg::prepare(stack, opts)?)),
+        "weidlich_wilkie" => Ok(weidlich_wilkie_kernel(&weidlich_wilkie::prepare(stack, opts)?)),
         _ => Err(unsupported(model)),
     }
 }

@@ -43,9 +43,22 @@ impl Interface {
         }
     }
 
-    /// Fills `table` with 128-sample Fresnel tables (Elek 2010).
+    /// Transmittance 1 − F of channel `c` into the layer below, without cancellation at grazing incidence (a
+    /// dielectric's), or from the precomputed table if any.
+    #[inline(always)]
+    pub fn transmittance(&self, form: FresnelForm, cos_i: f64, c: usize) -> f64 {
+        match self.table.get(c) {
+            Some(t) => t.transmittance(cos_i),
+            None if self.conductor => 1.0 - form.conductor(cos_i, self.eta[c], self.kappa[c]),
+            None => form.dielectric_transmittance(cos_i, self.eta[c]),
+        }
+    }
+
+    /// Fills `table` with 128-sample Fresnel tables (Elek 2010), with the transmittance beside F.
     pub fn precompute(&mut self, form: FresnelForm) {
-        self.table = (0..self.eta.len()).map(|c| FresnelTable::new(|cos| self.fresnel(form, cos, c))).collect();
+        self.table = (0..self.eta.len())
+            .map(|c| FresnelTable::new(|cos| (self.fresnel(form, cos, c), self.transmittance(form, cos, c))))
+            .collect();
     }
 }
 
@@ -63,6 +76,16 @@ pub enum SpLayer {
         sigma: f64,
         gain: Vec<f64>,
     },
+}
+
+impl SpLayer {
+    /// The layer's interface (none for a diffuse base).
+    pub fn interface(&self) -> Option<&Interface> {
+        match self {
+            SpLayer::Dielectric { iface, .. } | SpLayer::Conductor(iface) => Some(iface),
+            SpLayer::Diffuse { .. } => None,
+        }
+    }
 }
 
 /// The stack as single-pass layers. With `clamp_roughness` each layer is at least as rough as the one above
@@ -196,7 +219,7 @@ pub struct Walk {
     groups: Vec<std::ops::Range<usize>>,
     pub g2: G2Form,
     pub fresnel: FresnelForm,
-    eta2: bool,
+    pub eta2: bool,
 }
 
 impl Walk {

@@ -30,9 +30,9 @@ use crate::tables::steinberg::{self as lut, steinberg};
 use glam::DVec3;
 
 pub struct Prepared {
-    walk: Walk,
-    fitted: bool,
-    channels: usize,
+    pub walk: Walk,
+    pub fitted: bool,
+    pub channels: usize,
 }
 
 pub const INFO: ModelInfo = ModelInfo {

@@ -93,9 +93,9 @@ pub const INFO: ModelInfo = ModelInfo {
 };
 
 pub struct Prepared {
-    walk: Walk,
-    precomputed: bool,
-    channels: usize,
+    pub walk: Walk,
+    pub precomputed: bool,
+    pub channels: usize,
     /// The patina form of the stack (its top layer over the rest), when the top layer is a dielectric.
     patina: Option<Patina>,
 }
@@ -140,8 +140,8 @@ impl Transport for Prepared {
         if sin_i >= 1.0 || sin_o >= 1.0 {
             return None; // total internal reflection at the macro-surface
         }
-        let t12 = 1.0 - iface.fresnel(self.walk.fresnel, wi.z, c);
-        let t21 = 1.0 - iface.fresnel(self.walk.fresnel, wo.z, c);
+        let t12 = iface.transmittance(self.walk.fresnel, wi.z, c);
+        let t21 = iface.transmittance(self.walk.fresnel, wo.z, c);
         let g = if iface.mf.is_smooth() { 1.0 } else { iface.mf.g2(self.walk.g2, wi, wo, (wi + wo).normalize()) };
         Some(Passage {
             t_light: t12,

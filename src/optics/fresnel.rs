@@ -75,6 +75,27 @@ pub fn lazanyi(cos_i: f64, eta: f64, k: f64) -> f64 {
     (((eta - 1.0).powi(2) + 4.0 * eta * m + k * k) / ((eta + 1.0).powi(2) + k * k)).min(1.0)
 }
 
+/// 1 − (1 − cos θ)^5 without cancellation near grazing incidence: with x = 1 − cos θ, cos θ (1 + x + x² + x³ + x⁴).
+#[inline(always)]
+fn one_minus_pow5(cos_i: f64) -> f64 {
+    let c = cos_i.clamp(0.0, 1.0);
+    let x = 1.0 - c;
+    c * (1.0 + x * (1.0 + x * (1.0 + x * (1.0 + x))))
+}
+
+/// Transmittance 1 − F of `schlick`: (1 − F0)(1 − (1 − cos θ)^5), without cancellation at grazing incidence.
+#[inline(always)]
+pub fn schlick_transmittance(cos_i: f64, f0: f64) -> f64 {
+    (1.0 - f0) * one_minus_pow5(cos_i)
+}
+
+/// Transmittance 1 − F of `lazanyi`: 4η(1 − (1 − cos θ)^5) / [(η+1)² + κ²], at least 0, without cancellation at
+/// grazing incidence.
+#[inline(always)]
+pub fn lazanyi_transmittance(cos_i: f64, eta: f64, k: f64) -> f64 {
+    (4.0 * eta * one_minus_pow5(cos_i) / ((eta + 1.0).powi(2) + k * k)).max(0.0)
+}
+
 /// Hemispherical (cosine-weighted) average of the dielectric Fresnel reflectance for light incident from the
 /// side with relative IOR `eta`: F̄ = 2 ∫₀¹ F(μ, eta) μ dμ. For eta > 1 the integrand is smooth (Gauss–Legendre,
 /// ~1e-12); for eta < 1 energy balance across the interface (Snell: η_i² μ dμ = η_t² μ_t dμ_t) gives exactly
@@ -113,6 +134,16 @@ impl FresnelForm {
             form => form.conductor(cos_i, eta, 0.0),
         }
     }
+
+    /// Transmittance 1 − `dielectric` in the chosen form, without cancellation at grazing incidence.
+    pub fn dielectric_transmittance(self, cos_i: f64, eta: f64) -> f64 {
+        match self {
+            FresnelForm::Exact => dielectric_transmittance(cos_i, eta),
+            _ if eta < 1.0 => dielectric_transmittance(cos_i, eta),
+            FresnelForm::Schlick => schlick_transmittance(cos_i, f0(eta, 0.0)),
+            FresnelForm::Lazanyi => lazanyi_transmittance(cos_i, eta, 0.0),
+        }
+    }
 }
 
 #[cfg(test)]
@@ -128,6 +159,20 @@ mod tests {
                 assert!((t - (1.0 - r)).abs() < 1e-14, "eta {eta} cos {cos_i}: {t} vs 1 - {r}");
             }
         }
+        // Every form's transmittance is 1 − F, and at grazing incidence it is 5 (1 − F0) cos θ to first order (Schlick;
+        // Lazányi 20η cos θ / (η+1)²), which 1 − F in float32 would lose entirely.
+        for form in [FresnelForm::Exact, FresnelForm::Schlick, FresnelForm::Lazanyi] {
+            for eta in [0.5, 1.33, 1.5, 2.4] {
+                for k in 0..=100 {
+                    let cos_i = k as f64 / 100.0;
+                    let (t, r) = (form.dielectric_transmittance(cos_i, eta), form.dielectric(cos_i, eta));
+                    assert!((t - (1.0 - r)).abs() < 1e-14, "{form:?} eta {eta} cos {cos_i}: {t} vs 1 - {r}");
+                }
+            }
+        }
+        let c = 1e-9;
+        assert!((schlick_transmittance(c, 0.04) / (5.0 * 0.96 * c) - 1.0).abs() < 1e-8);
+        assert!((lazanyi_transmittance(c, 1.5, 0.0) / (20.0 * 1.5 * c / 6.25) - 1.0).abs() < 1e-8);
     }
 
     #[test]

@@ -12,17 +12,35 @@ use std::sync::OnceLock;
 pub const FRESNEL_SAMPLES: usize = 128;
 pub const D_SIZE: usize = 512;
 
-/// F(cos θ) sampled at 128 cosines uniform in [0, 1].
-pub struct FresnelTable(Grid<1, 1>);
+/// F(cos θ) sampled at 128 cosines uniform in [0, 1], and beside it the transmittance 1 − F computed without
+/// cancellation (lamina's addition: 1 − F of the stored F loses precision at grazing incidence, where F → 1).
+pub struct FresnelTable(Grid<1, 2>);
 
 impl FresnelTable {
-    pub fn new(f: impl Fn(f64) -> f64) -> Self {
-        let data = (0..FRESNEL_SAMPLES).map(|i| f(i as f64 / (FRESNEL_SAMPLES - 1) as f64) as f32).collect();
+    /// The table of `f_t`, which gives (F, 1 − F) at a cosine.
+    pub fn new(f_t: impl Fn(f64) -> (f64, f64)) -> Self {
+        let data = (0..FRESNEL_SAMPLES)
+            .flat_map(|i| {
+                let (f, t) = f_t(i as f64 / (FRESNEL_SAMPLES - 1) as f64);
+                [f as f32, t as f32]
+            })
+            .collect();
         FresnelTable(Grid::new([FRESNEL_SAMPLES], data))
     }
 
+    /// F at `cos_theta`, linearly interpolated.
     pub fn lookup(&self, cos_theta: f64) -> f64 {
         self.0.lookup([cos_theta])[0]
+    }
+
+    /// 1 − F at `cos_theta`, linearly interpolated.
+    pub fn transmittance(&self, cos_theta: f64) -> f64 {
+        self.0.lookup([cos_theta])[1]
+    }
+
+    /// The samples (F, 1 − F) per cosine, as the GPU uploads them.
+    pub fn samples(&self) -> &[f32] {
+        self.0.data()
     }
 }
 
@@ -40,6 +58,11 @@ fn beckmann(cos_h: f64, m: f64) -> f64 {
 pub struct BeckmannTable(Grid<2, 1>);
 
 impl BeckmannTable {
+    /// The samples [m][u], as the GPU uploads them (shaders/weidlich_wilkie.wgsl).
+    pub fn samples(&self) -> &[f32] {
+        self.0.data()
+    }
+
     pub fn lookup(&self, cos_h: f64, m: f64) -> f64 {
         self.0.lookup([m, cos_h.max(0.0).powi(8)])[0]
     }
@@ -65,7 +88,8 @@ mod tests {
         let t = beckmann_table();
         let (cos_h, m) = ((300.0f64 / 511.0).powf(1.0 / 8.0), 100.0 / 511.0);
         assert!((t.lookup(cos_h, m) / beckmann(cos_h, m) - 1.0).abs() < 1e-5);
-        let f = FresnelTable::new(|c| c * c);
+        let f = FresnelTable::new(|c| (c * c, 1.0 - c * c));
         assert!((f.lookup(1.0) - 1.0).abs() < 1e-7 && (f.lookup(0.5) - 0.25).abs() < 1e-4);
+        assert!((f.transmittance(0.5) - 0.75).abs() < 1e-4);
     }
 }

@@ -195,6 +195,12 @@ impl Steinberg {
         self.table.lookup([mu, alpha, eta_coord(eta)])
     }
 
+    /// The table's node values [μ][α][η][t, s / sin θ, p] and the fits' [α][η][a, b, c, d, m, a₁, a₂, b₁, b₂], as
+    /// the GPU uploads them (shaders/steinberg.wgsl).
+    pub fn gpu_data(&self) -> (&[f32], &[f32]) {
+        (self.table.data(), &self.fits)
+    }
+
     /// (t, s) from the table (s through s / sin θ).
     pub fn tabulated(&self, mu: f64, alpha: f64, eta: f64) -> (f64, f64) {
         let [t, s, _] = self.interpolate(mu, alpha, eta);

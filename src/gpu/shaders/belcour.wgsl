@@ -58,18 +58,6 @@ fn pseudo_angle(x_in: f32, y_in: f32) -> f32 {
     return p;
 }
 
-struct Node {
-    i: i32,
-    f: f32,
-}
-
-// tables::node: lower node and fraction of x on n uniform nodes over [0, 1], clamped.
-fn table_node(x: f32, n: u32) -> Node {
-    let s = clamp(x, 0.0, 1.0) * f32(n - 1u);
-    let i = min(i32(s), i32(n) - 2);
-    return Node(i, s - f32(i));
-}
-
 struct Corners {
     index: vec4<i32>,
     weight: vec4<f32>,

@@ -99,6 +99,23 @@ fn fresnel_lazanyi(cos_i: f32, eta: f32, k: f32) -> f32 {
     return min(((eta - 1.0) * (eta - 1.0) + 4.0 * eta * m + k * k) / ((eta + 1.0) * (eta + 1.0) + k * k), 1.0);
 }
 
+// fresnel::one_minus_pow5: 1 − (1 − cos θ)^5 without cancellation near grazing incidence.
+fn one_minus_pow5(cos_i: f32) -> f32 {
+    let c = clamp(cos_i, 0.0, 1.0);
+    let x = 1.0 - c;
+    return c * (1.0 + x * (1.0 + x * (1.0 + x * (1.0 + x))));
+}
+
+// fresnel::schlick_transmittance: (1 − F0)(1 − (1 − cos θ)^5).
+fn fresnel_schlick_transmittance(cos_i: f32, f0: f32) -> f32 {
+    return (1.0 - f0) * one_minus_pow5(cos_i);
+}
+
+// fresnel::lazanyi_transmittance: 4η(1 − (1 − cos θ)^5) / [(η+1)² + κ²], at least 0.
+fn fresnel_lazanyi_transmittance(cos_i: f32, eta: f32, k: f32) -> f32 {
+    return max(4.0 * eta * one_minus_pow5(cos_i) / ((eta + 1.0) * (eta + 1.0) + k * k), 0.0);
+}
+
 // FresnelForm::conductor: form 0 exact, 1 Schlick, 2 Lazányi.
 fn fresnel_form_conductor(form: u32, cos_i: f32, eta: f32, k: f32) -> f32 {
     switch form {
@@ -106,6 +123,25 @@ fn fresnel_form_conductor(form: u32, cos_i: f32, eta: f32, k: f32) -> f32 {
         case 2u: { return fresnel_lazanyi(cos_i, eta, k); }
         default: { return fresnel_conductor(cos_i, eta, k); }
     }
+}
+
+// FresnelForm::dielectric: the exact form, or the conductor form's approximation with κ = 0 where η ≥ 1.
+fn fresnel_form_dielectric(form: u32, cos_i: f32, eta: f32) -> f32 {
+    if form == 0u || eta < 1.0 {
+        return fresnel_dielectric(cos_i, eta);
+    }
+    return fresnel_form_conductor(form, cos_i, eta, 0.0);
+}
+
+// FresnelForm::dielectric_transmittance: 1 − fresnel_form_dielectric without cancellation at grazing incidence.
+fn fresnel_form_dielectric_transmittance(form: u32, cos_i: f32, eta: f32) -> f32 {
+    if form == 0u || eta < 1.0 {
+        return fresnel_dielectric_transmittance(cos_i, eta);
+    }
+    if form == 1u {
+        return fresnel_schlick_transmittance(cos_i, fresnel_f0(eta, 0.0));
+    }
+    return fresnel_lazanyi_transmittance(cos_i, eta, 0.0);
 }
 
 // Microfacet: distribution (0 GGX, 1 Beckmann), roughness along the tangent frame rotated by (cos_phi, sin_phi);
@@ -140,6 +176,19 @@ fn mf_d(mf: Microfacet, m_in: vec3<f32>) -> f32 {
         return 1.0 / (PI * mf.alpha_x * mf.alpha_y * s * s);
     }
     return exp(-(x * x + y * y) / z2) / (PI * mf.alpha_x * mf.alpha_y * z2 * z2);
+}
+
+// Microfacet::projected_alpha: α(φ) along the azimuth of w in the tangent frame (Heitz 2014 eq. 80); αx along the
+// normal.
+fn mf_projected_alpha(mf: Microfacet, w_in: vec3<f32>) -> f32 {
+    let w = to_tangent_frame(w_in, mf.cos_phi, mf.sin_phi);
+    let r2 = w.x * w.x + w.y * w.y;
+    if r2 == 0.0 {
+        return mf.alpha_x;
+    }
+    let ax = w.x * mf.alpha_x;
+    let ay = w.y * mf.alpha_y;
+    return sqrt((ax * ax + ay * ay) / r2);
 }
 
 // Microfacet::lambda: Smith Λ (Heitz 2014 eq. 72 GGX, eq. 69 Beckmann) with the projected roughness.
@@ -229,3 +278,17 @@ fn oren_nayar_shape(sigma: f32, wi: vec3<f32>, wo: vec3<f32>) -> f32 {
     let sin_alpha_tan_beta = sin_i * sin_o / max(max(wi.z, wo.z), 1e-12);
     return FRAC_1_PI * (a + b * max(cos_dphi, 0.0) * sin_alpha_tan_beta);
 }
+
+// The tables' lookup (src/tables): a lower node and the fraction of the way to the next.
+struct Node {
+    i: i32,
+    f: f32,
+}
+
+// tables::node: lower node and fraction of x on n uniform nodes over [0, 1], clamped.
+fn table_node(x: f32, n: u32) -> Node {
+    let s = clamp(x, 0.0, 1.0) * f32(n - 1u);
+    let i = min(i32(s), i32(n) - 2);
+    return Node(i, s - f32(i));
+}
+

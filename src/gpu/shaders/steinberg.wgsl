@@ -1,0 +1,120 @@
+// model="steinberg" on the GPU (src/models/steinberg.rs): the single-pass walk (single_pass.wgsl) with a
+// Cook–Torrance GGX lobe per interface and Steinberg's passage, t(wi) t(wo) and the mean refracted directions from
+// lamina's tables (src/tables/steinberg.rs), tabulated or fitted. Composed after optics.wgsl and single_pass.wgsl.
+
+struct Params {
+    n: u32,
+    channels: u32,
+    layers: u32,
+    g2: u32,
+    fresnel: u32,
+    eta2: u32,
+    fitted: u32,
+    n_mu: u32,
+    n_alpha: u32,
+    n_eta: u32,
+    eta_min: f32,
+    eta_max: f32,
+    fresnel_samples: u32,  // 0: no Fresnel tables
+    pad0: u32,
+    pad1: u32,
+    pad2: u32,
+}
+
+@group(0) @binding(0) var<uniform> params: Params;
+// [μ][α][η][t, s / sin θ, p]
+@group(0) @binding(2) var<storage, read> table: array<f32>;
+// [α][η][a, b, c, d, m, a₁, a₂, b₁, b₂]
+@group(0) @binding(3) var<storage, read> fits: array<f32>;
+@group(0) @binding(4) var<storage, read> pairs: array<f32>;
+@group(0) @binding(5) var<storage, read_write> out: array<f32>;
+
+const STRIDE: u32 = 3u;
+const FIT: u32 = 9u;
+
+// tables::steinberg::eta_coord: η's coordinate on the table's logarithmic axis.
+fn eta_coord(eta: f32) -> f32 {
+    return log(eta / params.eta_min) / log(params.eta_max / params.eta_min);
+}
+
+// Steinberg::tabulated: (t, s) trilinear in (μ, α, log η), s through s / sin θ.
+fn tabulated(mu: f32, alpha: f32, eta: f32) -> vec2<f32> {
+    let nodes = array<Node, 3>(table_node(mu, params.n_mu), table_node(alpha, params.n_alpha), table_node(eta_coord(eta), params.n_eta));
+    let strides = vec3<u32>(params.n_alpha * params.n_eta, params.n_eta, 1u);
+    let base = u32(nodes[0].i) * strides.x + u32(nodes[1].i) * strides.y + u32(nodes[2].i);
+    var ts = vec2<f32>(0.0);
+    for (var k = 0u; k < 8u; k++) {
+        var weight = 1.0;
+        var index = base;
+        for (var d = 0u; d < 3u; d++) {
+            let bit = (k >> (2u - d)) & 1u;
+            weight *= select(1.0 - nodes[d].f, nodes[d].f, bit == 1u);
+            index += bit * strides[d];
+        }
+        ts += weight * vec2<f32>(table[index * STRIDE], table[index * STRIDE + 1u]);
+    }
+    return vec2<f32>(ts.x, min(ts.y * sqrt(max(1.0 - mu * mu, 0.0)), 1.0));
+}
+
+// tables::steinberg::t_model: m((erf(aμ − b) + 1) + cμ) + d, and s_model: a₁e^{a₂μ} + b₁e^{b₂μ}, of fit record k.
+fn fitted_node(k: u32, mu: f32) -> vec2<f32> {
+    let p = k * FIT;
+    let t = fits[p + 4u] * ((erf(fits[p] * mu - fits[p + 1u]) + 1.0) + fits[p + 2u] * mu) + fits[p + 3u];
+    let s = fits[p + 5u] * exp(fits[p + 6u] * mu) + fits[p + 7u] * exp(fits[p + 8u] * mu);
+    return vec2<f32>(t, s);
+}
+
+// Steinberg::fitted: (t, s) of the fitted closed forms, bilinear in (α, log η), clamped to [0, 1].
+fn fitted(mu: f32, alpha: f32, eta: f32) -> vec2<f32> {
+    let j = table_node(alpha, params.n_alpha);
+    let e = table_node(eta_coord(eta), params.n_eta);
+    let k = u32(j.i) * params.n_eta + u32(e.i);
+    let ts = (1.0 - j.f) * ((1.0 - e.f) * fitted_node(k, mu) + e.f * fitted_node(k + 1u, mu))
+        + j.f * ((1.0 - e.f) * fitted_node(k + params.n_eta, mu) + e.f * fitted_node(k + params.n_eta + 1u, mu));
+    return clamp(ts, vec2<f32>(0.0), vec2<f32>(1.0));
+}
+
+// Prepared::lobe: the Cook–Torrance GGX lobe's D G2 / (4 cos θi cos θo) and wi·h.
+fn lobe(layer: Layer, wi: vec3<f32>, wo: vec3<f32>) -> vec2<f32> {
+    return reflection_geometry(layer.mf, params.g2, wi, wo);
+}
+
+// Prepared::passage's lookup: (t, s) of direction w at its projected roughness.
+fn transmission(mf: Microfacet, w: vec3<f32>, eta: f32) -> vec2<f32> {
+    var alpha = 0.0;
+    if mf.smooth_ == 0u {
+        alpha = mf_projected_alpha(mf, w);
+    }
+    if params.fitted != 0u {
+        return fitted(w.z, alpha, eta);
+    }
+    return tabulated(w.z, alpha, eta);
+}
+
+// Prepared::passage: t(wo) t(wi) and the mean refracted directions.
+fn passage(layer: Layer, wi: vec3<f32>, wo: vec3<f32>, ch: u32) -> Passage {
+    let eta = value(layer, ch, ETA);
+    let i = transmission(layer.mf, wi, eta);
+    let o = transmission(layer.mf, wo, eta);
+    return Passage(i.x, o.x, o.x, refracted_up(wi, i.y), refracted_up(wo, o.y), true);
+}
+
+fn load(i: u32, which: u32) -> vec3<f32> {
+    let k = 6u * i + 3u * which;
+    return vec3<f32>(pairs[k], pairs[k + 1u], pairs[k + 2u]);
+}
+
+// f(wi, wo) of every channel into out[base..]: the model's one evaluation, shared by the eval and render kernels.
+fn eval_pair(wi: vec3<f32>, wo: vec3<f32>, base: u32) {
+    for (var ch = 0u; ch < params.channels; ch++) {
+        out[base + ch] = walk(wi, wo, ch);
+    }
+}
+
+@compute @workgroup_size(64)
+fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
+    let i = gid.x;
+    if i < params.n {
+        eval_pair(load(i, 0u), load(i, 1u), i * params.channels);
+    }
+}
