@@ -1,9 +1,9 @@
-"""The wgpu path against the CPU: every microfacet configuration, Belcour on the suite with its options, random
-stacks (Belcour, Steinberg, Weidlich–Wilkie), spectral and dispersive channels and inputs longer than one dispatch agree to 1e-4 relative on values above 1e-6 of the peak
-(the issue's criterion; the float32 shader against the float64 core measures about 1e-5 at worst), plus where f
-is ill-conditioned in float32 what 4-ulp changes of the inputs alone move the float64 result by. Runs on whatever
-adapter wgpu finds: lavapipe in CI (make test installs it when root). Without an adapter these tests fail, saying how
-to get one, unless LAMINA_SKIP_GPU=1."""
+"""The wgpu path against the CPU: every microfacet configuration, Belcour, Steinberg and Weidlich–Wilkie on the suite
+with their options, random stacks, spectral and dispersive channels and inputs longer than one dispatch agree to 1e-4
+relative on values above 1e-6 of the peak (the issue's criterion; the float32 shader against the float64 core
+measures about 1e-5 at worst), plus where f is ill-conditioned in float32 what 4-ulp changes of the inputs alone move
+the float64 result by. Runs on whatever adapter wgpu finds: lavapipe in CI (make test installs it when root). Without
+an adapter these tests fail, saying how to get one, unless LAMINA_SKIP_GPU=1."""
 
 import os
 
