@@ -23,6 +23,7 @@ CASES = [
     ("coated copper, 2 layers", "rough-coat-rough-copper", "belcour"),
     ("coated copper, 2 layers", "rough-coat-rough-copper", "steinberg"),
     ("coated copper, 2 layers", "rough-coat-rough-copper", "weidlich_wilkie"),
+    ("coated copper, 2 layers", "rough-coat-rough-copper", "albedo_scaling"),
 ]
 
 

@@ -1,9 +1,9 @@
-"""The wgpu path against the CPU: every microfacet configuration, Belcour, Steinberg and Weidlich–Wilkie on the suite
-with their options, random stacks, spectral and dispersive channels and inputs longer than one dispatch agree to 1e-4
-relative on values above 1e-6 of the peak (the issue's criterion; the float32 shader against the float64 core
-measures about 1e-5 at worst), plus where f is ill-conditioned in float32 what 4-ulp changes of the inputs alone move
-the float64 result by. Runs on whatever adapter wgpu finds: lavapipe in CI (make test installs it when root). Without
-an adapter these tests fail, saying how to get one, unless LAMINA_SKIP_GPU=1."""
+"""The wgpu path against the CPU: every microfacet configuration, and Belcour, Steinberg, Weidlich–Wilkie and albedo
+scaling on the suite with their options, random stacks, spectral and dispersive channels and inputs longer than one
+dispatch agree to 1e-4 relative on values above 1e-6 of the peak (the issue's criterion; the float32 shader against
+the float64 core measures about 1e-5 at worst), plus where f is ill-conditioned in float32 what 4-ulp changes of the
+inputs alone move the float64 result by. Runs on whatever adapter wgpu finds: lavapipe in CI (make test installs it
+when root). Without an adapter these tests fail, saying how to get one, unless LAMINA_SKIP_GPU=1."""
 
 import os
 
@@ -100,9 +100,9 @@ def test_belcour_options(material, options):
     assert_parity(materials.suite(material), "belcour", **options)
 
 
-@pytest.mark.parametrize("model", ["steinberg", "weidlich_wilkie"])
+@pytest.mark.parametrize("model", ["steinberg", "weidlich_wilkie", "albedo_scaling"])
 @pytest.mark.parametrize("material", sorted(materials.SUITE) + ["car-paint"])
-def test_single_pass_suite(material, model):
+def test_layered_models_on_the_suite(material, model):
     stack = materials.car_paint() if material == "car-paint" else materials.suite(material)
     assert_parity(stack, model)
 
@@ -117,17 +117,19 @@ def test_single_pass_suite(material, model):
         ("weidlich_wilkie", {"precomputed": True}),
         ("weidlich_wilkie", {"distribution": "ggx", "g2": "height_correlated", "fresnel": "lazanyi"}),
         ("weidlich_wilkie", {"clamp_roughness": False, "eta2": False, "interreflection": True}),
+        ("albedo_scaling", {"scaling": "view", "roughening": False}),
+        ("albedo_scaling", {"g2": "height_correlated"}),
     ],
 )
 @pytest.mark.parametrize("material", ["anisotropic-coat-metal", "varnished-diffuse", "three-layer"])
-def test_single_pass_options(material, model, options):
+def test_layered_model_options(material, model, options):
     assert_parity(materials.suite(material), model, **options)
 
 
-def test_single_pass_spectral_and_dispersive():
+def test_layered_models_spectral_and_dispersive():
     """Spectral channels, and a dispersive coat (an IOR per channel: one pass per channel on the CPU too)."""
     wl = np.arange(400.0, 701.0, 20.0)
-    for model in ("steinberg", "weidlich_wilkie"):
+    for model in ("steinberg", "weidlich_wilkie", "albedo_scaling"):
         assert_parity(materials.preset("coated-copper"), model, wavelengths=wl)
         dispersive = lamina.Stack(
             [
@@ -140,7 +142,7 @@ def test_single_pass_spectral_and_dispersive():
 
 @settings(max_examples=15, deadline=None)
 @given(
-    model=st.sampled_from(["belcour", "steinberg", "weidlich_wilkie"]),
+    model=st.sampled_from(["belcour", "steinberg", "weidlich_wilkie", "albedo_scaling"]),
     ior=st.floats(1.05, 2.5),
     # Smooth, or at least 0.01 along each axis: a lobe of roughness α (≥ 1e-4) amplifies the float32 rounding of the
     # directions (6e-8) by 1/α, so below 0.01 float32 cannot hold 1e-4.
@@ -202,7 +204,7 @@ def test_device_choice_and_errors():
     with pytest.raises(ValueError, match="device must be one of"):
         stack.eval(wi, wo, device="tpu")
     with pytest.raises(ValueError, match="no GPU implementation yet"):
-        materials.suite("gold-clearcoat").eval(wi, wo, "albedo_scaling", device="gpu")
+        materials.suite("gold-clearcoat").eval(wi, wo, "reference", device="gpu")
     with pytest.raises(ValueError, match="per-element inputs run on the CPU only"):
         materials.car_paint().eval(wi, wo, "weidlich_wilkie", device="gpu", flake_normal=wi)
     with pytest.raises(ValueError, match="tabulated=False runs on the CPU only"):
@@ -224,6 +226,7 @@ def test_device_choice_and_errors():
         ("varnished-diffuse", "belcour"),
         ("three-layer", "steinberg"),
         ("car-paint", "weidlich_wilkie"),
+        ("gold-clearcoat", "albedo_scaling"),
     ],
 )
 @pytest.mark.parametrize(

@@ -123,10 +123,15 @@ class Stack:
         if tolerance is not None:
             raise TypeError(f"tolerance applies to model='auto' only, got model={model!r}")
         m, options, inputs = self._split(model, kwargs)
+        on_gpu = _gpu.use_gpu(device, m.name)
         if m.name == "reference":
+            if on_gpu:
+                raise ValueError(
+                    f"model 'reference' has no GPU implementation yet (GPU models: {_gpu.models()}); use device='cpu'"
+                )
             return self.reference(wi, wo, wavelengths=wavelengths, samples=samples, seed=seed, **options)[0]
         wl = _wavelengths(wavelengths)
-        if _gpu.use_gpu(device, m.name):
+        if on_gpu:
             if inputs:
                 raise ValueError(f"device={device!r}: per-element inputs run on the CPU only; use device='cpu'")
             wi, wo = broadcast(wi=(wi, 3), wo=(wo, 3))

@@ -3,8 +3,9 @@
 //! `cargo test` validates every composed shader with naga, without a GPU; tests/test_gpu.py checks parity with the
 //! CPU on a real adapter (lavapipe in CI).
 //!
-//! Models on the GPU: `microfacet`, `steinberg` and `weidlich_wilkie` (every option; the last two share
-//! shaders/single_pass.wgsl's walk) and `belcour` (tabulated, every other option). Per-element inputs (car-paint
+//! Models on the GPU: `microfacet`, `steinberg`, `weidlich_wilkie` and `albedo_scaling` (every option; the last
+//! three read shaders/layers.wgsl's layers, the single-pass models walk them in shaders/single_pass.wgsl) and
+//! `belcour` (tabulated, every other option). Per-element inputs (car-paint
 //! flakes, the patina mask) run on the CPU only. A model's
 //! tables are uploaded once per stack and options and kept (`uploaded`). Inputs of any length are split into
 //! dispatches of at most CHUNK pairs. The renderer (`render`, shaders/scene.wgsl and render.wgsl) renders stacks,
@@ -15,7 +16,7 @@ pub mod oat;
 
 use crate::error::{value_error, Error, Result};
 use crate::models::single_pass::SpLayer;
-use crate::models::{belcour, microfacet, steinberg, weidlich_wilkie, Options};
+use crate::models::{albedo_scaling, belcour, microfacet, steinberg, weidlich_wilkie, Options};
 use crate::optics::distribution::{Distribution, G2Form, Microfacet};
 use crate::optics::fresnel::FresnelForm;
 use crate::stack::Stack;
@@ -37,11 +38,23 @@ pub const RASTER: &str = include_str!("shaders/raster.wgsl");
 pub const MODELS: &[(&str, &str)] = &[
     ("microfacet", include_str!("shaders/microfacet.wgsl")),
     ("belcour", include_str!("shaders/belcour.wgsl")),
-    ("steinberg", concat!(include_str!("shaders/single_pass.wgsl"), "\n", include_str!("shaders/steinberg.wgsl"))),
+    (
+        "steinberg",
+        concat!(
+            include_str!("shaders/layers.wgsl"),
+            include_str!("shaders/single_pass.wgsl"),
+            include_str!("shaders/steinberg.wgsl")
+        ),
+    ),
     (
         "weidlich_wilkie",
-        concat!(include_str!("shaders/single_pass.wgsl"), "\n", include_str!("shaders/weidlich_wilkie.wgsl")),
+        concat!(
+            include_str!("shaders/layers.wgsl"),
+            include_str!("shaders/single_pass.wgsl"),
+            include_str!("shaders/weidlich_wilkie.wgsl")
+        ),
     ),
+    ("albedo_scaling", concat!(include_str!("shaders/layers.wgsl"), include_str!("shaders/albedo_scaling.wgsl"))),
 ];
 
 /// A model's complete shader source: the primitives, then the model.
@@ -391,6 +404,38 @@ pub fn weidlich_wilkie_kernel(p: &weidlich_wilkie::Prepared) -> Kernel {
     Kernel { model: "weidlich_wilkie", words, count_word: 0, arrays: vec![layers, beckmann], channels: p.channels }
 }
 
+/// The albedo-scaling kernel: 16 words in the layout of `Params` in albedo_scaling.wgsl, the layers and the FGD table.
+pub fn albedo_scaling_kernel(p: &albedo_scaling::Prepared) -> Kernel {
+    use crate::tables::fgd::{fgd, ETA_MAX, ETA_MIN, KAPPA_MAX, N_ALPHA, N_ETA, N_KAPPA, N_MU};
+    let (layers, fresnel_samples) = single_pass_layers(&p.layers, p.channels);
+    let f = |x: f64| (x as f32).to_bits();
+    let words = vec![
+        0,
+        p.channels as u32,
+        p.layers.len() as u32,
+        g2_code(p.g2),
+        p.reciprocal as u32,
+        fresnel_code(FresnelForm::Exact),
+        fresnel_samples,
+        0,
+        N_MU as u32,
+        N_ALPHA as u32,
+        N_ETA as u32,
+        N_KAPPA as u32,
+        f(ETA_MIN),
+        f(ETA_MAX),
+        f(KAPPA_MAX),
+        0,
+    ];
+    Kernel {
+        model: "albedo_scaling",
+        words,
+        count_word: 0,
+        arrays: vec![layers, fgd().data().to_vec()],
+        channels: p.channels,
+    }
+}
+
 /// A prepared model's kernel, or why it does not run on the GPU.
 pub fn kernel(model: &str, stack: &Stack, opts: &Options) -> Result<Kernel> {
     match model {
@@ -398,6 +443,7 @@ pub fn kernel(model: &str, stack: &Stack, opts: &Options) -> Result<Kernel> {
         "belcour" => belcour_kernel(&belcour::prepare(stack, opts)?),
         "steinberg" => Ok(steinberg_kernel(&steinberg::prepare(stack, opts)?)),
         "weidlich_wilkie" => Ok(weidlich_wilkie_kernel(&weidlich_wilkie::prepare(stack, opts)?)),
+        "albedo_scaling" => Ok(albedo_scaling_kernel(&albedo_scaling::prepare(stack, opts)?)),
         _ => Err(unsupported(model)),
     }
 }

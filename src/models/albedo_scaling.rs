@@ -56,10 +56,10 @@ pub const INFO: ModelInfo = ModelInfo {
 
 pub struct Prepared {
     /// The stack as the single-pass models see it (models/single_pass.rs), roughened.
-    layers: Vec<SpLayer>,
-    g2: G2Form,
-    reciprocal: bool,
-    channels: usize,
+    pub layers: Vec<SpLayer>,
+    pub g2: G2Form,
+    pub reciprocal: bool,
+    pub channels: usize,
 }
 
 /// OpenPBR's roughening of what lies under a rough coat, r′ = min(1, r⁴ + 2 r_c⁴)^{1/4} in its roughness r = √α,
@@ -101,6 +101,15 @@ fn albedo(i: &Interface, mu: f64, c: usize) -> f64 {
     tables::fgd().lookup(mu, alpha, i.eta[c], i.kappa[c])
 }
 
+/// 1 − E(μ): what the interface's lobe does not reflect (a smooth interface's without cancellation at grazing
+/// incidence, where F → 1).
+fn unreflected(i: &Interface, mu: f64, c: usize) -> f64 {
+    if i.mf.is_smooth() {
+        return i.transmittance(FresnelForm::Exact, mu, c);
+    }
+    1.0 - albedo(i, mu, c)
+}
+
 impl Prepared {
     /// The interfaces top to bottom, each with the slab beneath it (thickness, σt per channel); None for the base.
     fn interfaces(&self) -> impl Iterator<Item = (&Interface, Option<(f64, &[f64])>)> {
@@ -114,8 +123,8 @@ impl Prepared {
     /// The scale S of what lies beneath interface `i` (over its slab) for channel c: 1 − E per direction and the
     /// slab's Beer–Lambert transmittance along the refracted directions.
     fn scale(&self, i: &Interface, (thickness, sigma_t): (f64, &[f64]), wi: DVec3, wo: DVec3, c: usize) -> f64 {
-        let view = 1.0 - albedo(i, wo.z, c);
-        let light = if self.reciprocal { 1.0 - albedo(i, wi.z, c) } else { 1.0 };
+        let view = unreflected(i, wo.z, c);
+        let light = if self.reciprocal { unreflected(i, wi.z, c) } else { 1.0 };
         let down = |w: DVec3| refracted_up(w, sin_theta(w) / i.eta[c]);
         (light * view).max(0.0) * beer_lambert(sigma_t[c], thickness, down(wi), down(wo))
     }

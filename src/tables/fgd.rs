@@ -12,13 +12,13 @@ use glam::DVec3;
 use rayon::prelude::*;
 use std::sync::OnceLock;
 
-const N_MU: usize = 32;
-const N_ALPHA: usize = 32;
-const N_ETA: usize = 48;
-const N_KAPPA: usize = 24;
-const ETA_MIN: f64 = 0.02;
-const ETA_MAX: f64 = 8.0;
-const KAPPA_MAX: f64 = 12.0;
+pub const N_MU: usize = 32;
+pub const N_ALPHA: usize = 32;
+pub const N_ETA: usize = 48;
+pub const N_KAPPA: usize = 24;
+pub const ETA_MIN: f64 = 0.02;
+pub const ETA_MAX: f64 = 8.0;
+pub const KAPPA_MAX: f64 = 12.0;
 const QUADRATURE: usize = 256;
 
 pub struct Fgd {
@@ -74,6 +74,11 @@ impl Fgd {
             })
             .collect();
         Fgd { grid: Grid::new([N_MU, N_ALPHA, N_ETA, N_KAPPA], cells.concat()) }
+    }
+
+    /// The node values [μ][α][η][κ], as the GPU uploads them (shaders/albedo_scaling.wgsl).
+    pub fn data(&self) -> &[f32] {
+        self.grid.data()
     }
 
     /// Quadrilinear lookup of FGD(μ, α, η, κ).

@@ -292,3 +292,38 @@ fn table_node(x: f32, n: u32) -> Node {
     return Node(i, s - f32(i));
 }
 
+
+// tables::Grid::lookup's corners: for coordinates x (each clamped to [0, 1]) on a grid of d ≤ 4 axes with dims[a]
+// nodes each (the last axis fastest), the 2^d corner records' indices and multilinear weights.
+struct GridCorners {
+    index: array<u32, 16>,
+    weight: array<f32, 16>,
+    count: u32,
+}
+
+fn grid_corners(x: vec4<f32>, dims: vec4<u32>, d: u32) -> GridCorners {
+    var nodes: array<Node, 4>;
+    var strides: array<u32, 4>;
+    var stride = 1u;
+    var base = 0u;
+    for (var a = i32(d) - 1; a >= 0; a--) {
+        strides[a] = stride;
+        nodes[a] = table_node(x[a], dims[a]);
+        base += u32(nodes[a].i) * stride;
+        stride *= dims[a];
+    }
+    var out: GridCorners;
+    out.count = 1u << d;
+    for (var k = 0u; k < out.count; k++) {
+        var weight = 1.0;
+        var index = base;
+        for (var a = 0u; a < d; a++) {
+            let bit = (k >> (d - 1u - a)) & 1u;
+            weight *= select(1.0 - nodes[a].f, nodes[a].f, bit == 1u);
+            index += bit * strides[a];
+        }
+        out.index[k] = index;
+        out.weight[k] = weight;
+    }
+    return out;
+}

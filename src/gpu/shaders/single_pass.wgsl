@@ -1,47 +1,8 @@
-// The walk shared by the single-pass models on the GPU (src/models/single_pass.rs), here for one channel at a time:
-// at each interface its specular lobe weighted by the attenuation above, then the model's passage into the slab
-// below with its Beer–Lambert attenuation and scattered light, down to the opaque base. Composed after optics.wgsl
-// and before the model's shader, which declares `params` (channels, layers, g2, fresnel, eta2, fresnel_samples) and
-// the model's `lobe` and `passage` (single_pass::Transport).
-
-// The layers as gpu::single_pass_layers writes them: per layer a header of HEADER values, then per channel
-// PER_CHANNEL values and Elek's Fresnel table, (F, 1 − F) at each of params.fresnel_samples nodes (none without).
-@group(0) @binding(1) var<storage, read> layers: array<f32>;
-
-const HEADER: u32 = 9u;
-const PER_CHANNEL: u32 = 5u;
-const DIELECTRIC: u32 = 0u;
-const CONDUCTOR: u32 = 1u;
-
-struct Layer {
-    kind: u32,
-    mf: Microfacet,
-    thickness: f32,
-    sigma: f32,  // Oren–Nayar σ of a diffuse base
-    at: u32,     // where its channel values start
-}
-
-// SpLayer: layer l of the stack.
-fn sp_layer(l: u32) -> Layer {
-    let at = l * (HEADER + channel_stride() * params.channels);
-    let mf = Microfacet(u32(layers[at + 1u]), u32(layers[at + 2u]), layers[at + 3u], layers[at + 4u], layers[at + 5u], layers[at + 6u]);
-    return Layer(u32(layers[at]), mf, layers[at + 7u], layers[at + 8u], at + HEADER);
-}
-
-// Per-channel values of a layer: η, κ, σt, albedo (single-scattering, or the diffuse base's), gain.
-const ETA: u32 = 0u;
-const KAPPA: u32 = 1u;
-const SIGMA_T: u32 = 2u;
-const ALBEDO: u32 = 3u;
-const GAIN: u32 = 4u;
-
-fn channel_stride() -> u32 {
-    return PER_CHANNEL + 2u * params.fresnel_samples;
-}
-
-fn value(layer: Layer, ch: u32, which: u32) -> f32 {
-    return layers[layer.at + ch * channel_stride() + which];
-}
+// The walk shared by the single-pass models on the GPU (Walk in src/models/single_pass.rs), here for one channel at a
+// time: at each interface its specular lobe weighted by the attenuation above, then the model's passage into the slab
+// below with its Beer–Lambert attenuation and scattered light, down to the opaque base. Composed after layers.wgsl
+// and before the model's shader, which declares `params` (also layers, g2 and eta2) and the model's `lobe` and
+// `passage` (single_pass::Transport).
 
 // single_pass::Passage: transmissions of the light and view directions, the view's for the slab's scattering, and
 // the directions refracted into the slab (pointing up); `through` false when nothing gets through.
@@ -52,54 +13,6 @@ struct Passage {
     wi: vec3<f32>,
     wo: vec3<f32>,
     through: bool,
-}
-
-// single_pass::refracted_up: w refracted into a slab and flipped to point up, same azimuth, sine sin_t.
-fn refracted_up(w: vec3<f32>, sin_t: f32) -> vec3<f32> {
-    let r = sqrt(w.x * w.x + w.y * w.y);
-    let cos_t = sqrt(max(1.0 - sin_t * sin_t, 0.0));
-    if r == 0.0 {
-        return vec3<f32>(0.0, 0.0, cos_t);
-    }
-    return vec3<f32>(w.x / r * sin_t, w.y / r * sin_t, cos_t);
-}
-
-// single_pass::beer_lambert: exp(−σ d (1/cos θi + 1/cos θo)) along both refracted directions.
-fn beer_lambert(sigma_t: f32, thickness: f32, wi: vec3<f32>, wo: vec3<f32>) -> f32 {
-    if sigma_t * thickness == 0.0 {
-        return 1.0;
-    }
-    return exp(-sigma_t * thickness * (1.0 / max(wi.z, 1e-9) + 1.0 / max(wo.z, 1e-9)));
-}
-
-// FresnelTable::lookup (which 0) and transmittance (which 1): linear in cos θ over the table's nodes.
-fn fresnel_table(layer: Layer, cos_i: f32, ch: u32, which: u32) -> f32 {
-    let node = table_node(cos_i, params.fresnel_samples);
-    let at = layer.at + ch * channel_stride() + PER_CHANNEL + 2u * u32(node.i) + which;
-    return (1.0 - node.f) * layers[at] + node.f * layers[at + 2u];
-}
-
-// Interface::fresnel: the layer's Fresnel reflectance of channel ch in the chosen form, or from its table.
-fn interface_fresnel(layer: Layer, cos_i: f32, ch: u32) -> f32 {
-    if params.fresnel_samples > 0u {
-        return fresnel_table(layer, cos_i, ch, 0u);
-    }
-    if layer.kind == CONDUCTOR {
-        return fresnel_form_conductor(params.fresnel, cos_i, value(layer, ch, ETA), value(layer, ch, KAPPA));
-    }
-    return fresnel_form_dielectric(params.fresnel, cos_i, value(layer, ch, ETA));
-}
-
-// Interface::transmittance: 1 − F into the layer below, without cancellation at grazing incidence (a dielectric's),
-// or from its table.
-fn interface_transmittance(layer: Layer, cos_i: f32, ch: u32) -> f32 {
-    if params.fresnel_samples > 0u {
-        return fresnel_table(layer, cos_i, ch, 1u);
-    }
-    if layer.kind == CONDUCTOR {
-        return 1.0 - interface_fresnel(layer, cos_i, ch);
-    }
-    return fresnel_form_dielectric_transmittance(params.fresnel, cos_i, value(layer, ch, ETA));
 }
 
 // Walk::eval_group for channel ch: f(wi, wo) of the stack; 0 below the horizon.

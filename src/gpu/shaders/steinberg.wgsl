@@ -1,6 +1,7 @@
 // model="steinberg" on the GPU (src/models/steinberg.rs): the single-pass walk (single_pass.wgsl) with a
 // Cook–Torrance GGX lobe per interface and Steinberg's passage, t(wi) t(wo) and the mean refracted directions from
-// lamina's tables (src/tables/steinberg.rs), tabulated or fitted. Composed after optics.wgsl and single_pass.wgsl.
+// lamina's tables (src/tables/steinberg.rs), tabulated or fitted. Composed after optics.wgsl, layers.wgsl and
+// single_pass.wgsl.
 
 struct Params {
     n: u32,
@@ -39,19 +40,11 @@ fn eta_coord(eta: f32) -> f32 {
 
 // Steinberg::tabulated: (t, s) trilinear in (μ, α, log η), s through s / sin θ.
 fn tabulated(mu: f32, alpha: f32, eta: f32) -> vec2<f32> {
-    let nodes = array<Node, 3>(table_node(mu, params.n_mu), table_node(alpha, params.n_alpha), table_node(eta_coord(eta), params.n_eta));
-    let strides = vec3<u32>(params.n_alpha * params.n_eta, params.n_eta, 1u);
-    let base = u32(nodes[0].i) * strides.x + u32(nodes[1].i) * strides.y + u32(nodes[2].i);
+    let dims = vec4<u32>(params.n_mu, params.n_alpha, params.n_eta, 1u);
+    let c = grid_corners(vec4<f32>(mu, alpha, eta_coord(eta), 0.0), dims, 3u);
     var ts = vec2<f32>(0.0);
-    for (var k = 0u; k < 8u; k++) {
-        var weight = 1.0;
-        var index = base;
-        for (var d = 0u; d < 3u; d++) {
-            let bit = (k >> (2u - d)) & 1u;
-            weight *= select(1.0 - nodes[d].f, nodes[d].f, bit == 1u);
-            index += bit * strides[d];
-        }
-        ts += weight * vec2<f32>(table[index * STRIDE], table[index * STRIDE + 1u]);
+    for (var k = 0u; k < c.count; k++) {
+        ts += c.weight[k] * vec2<f32>(table[c.index[k] * STRIDE], table[c.index[k] * STRIDE + 1u]);
     }
     return vec2<f32>(ts.x, min(ts.y * sqrt(max(1.0 - mu * mu, 0.0)), 1.0));
 }

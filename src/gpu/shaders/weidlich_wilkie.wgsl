@@ -1,7 +1,7 @@
 // model="weidlich_wilkie" on the GPU (src/models/weidlich_wilkie.rs): the single-pass walk (single_pass.wgsl) with a
 // Torrance–Sparrow lobe per interface (D optionally from Elek's Beckmann table) and Weidlich–Wilkie's passage:
-// Snell's law at the macro-surface, T₁₂ = 1 − F(cos θL) in, t = (1 − G) + T₂₁ G out. Composed after optics.wgsl
-// and single_pass.wgsl.
+// Snell's law at the macro-surface, T₁₂ = 1 − F(cos θL) in, t = (1 − G) + T₂₁ G out. Composed after optics.wgsl,
+// layers.wgsl and single_pass.wgsl.
 
 struct Params {
     n: u32,
