@@ -221,6 +221,9 @@ def render_gpu(
     lights: list[tuple[str, tuple[float, float, float], tuple[float, float, float]]],
     width: int,
     height: int,
+    env: tuple[_Array, float, float] | None = None,
+    spp: int = 1,
+    seed: int = 0,
 ) -> _Array: ...
 def render_oat_gpu(
     materials: list[OatMaterial],

@@ -212,8 +212,9 @@ def write_gallery(out="out", *, size: int = 128, spp: int = 32, reference_spp: i
     start = time.perf_counter()
     adapter = _gpu.adapter()
     found = f"{adapter['name']} ({adapter['device_type']})" if adapter else f"none ({_gpu._adapter()[1]})"
-    log(f"lamina gallery: device cpu ({_threads()} threads). GPU adapter: {found}.")
-    log("The GPU renders directional and point lights only; the gallery is lit by the sky: it renders on the CPU.")
+    hardware = adapter is not None and adapter["device_type"] != "Cpu"  # device="auto": lavapipe is not faster
+    device = f"the GPU, {found}" if hardware else f"the CPU ({_threads()} threads; GPU adapter: {found})"
+    log(f"lamina gallery: the models render on {device}, the reference and the textured scenes on the CPU.")
     fig, result = gallery(size=size, spp=spp, reference_spp=reference_spp, log=log)
     for k, name in enumerate(result["names"]):
         save_image(out / "exr" / f"{name}_reference.exr", result["reference"][k])

@@ -295,9 +295,10 @@ def render(
     for `seed`; every stack sees the same samples. The reference estimates f per light and the environment by random
     walks, `spp` per pixel and channel. Keyword arguments are the model's options, and its per-element inputs as
     textures over the surface's uv ((h, w) or (h, w, 3) arrays, or constants), e.g. flake_normal for car paint.
-    device: "cpu"; "gpu" renders directional and point lights with the models that run on the GPU
-    (lamina.gpu.models(), wgpu, float32, one dispatch per stack in one submission; a mesh is rasterized through the
-    camera first; other scenes raise ValueError); "auto" takes a hardware GPU for such scenes, else the CPU.
+    device: "cpu"; "gpu" renders with the models that run on the GPU (lamina.gpu.models(), wgpu, float32, one dispatch
+    per stack in one submission; a mesh is rasterized through the camera first; an environment is sampled as on the
+    CPU, with other random numbers: the images agree statistically; per-element textures and the reference raise
+    ValueError); "auto" takes a hardware GPU for such scenes, else the CPU.
 
     material: instead of stacks, a lamina.oat.Material or a list of them (Oat 2006's gooey layers, lit by the
     directional and point lights; on the GPU for every shape)."""
@@ -343,15 +344,14 @@ def render(
             f"per-element inputs {list(m.inputs)}"
         )
     layers = [(s._resolve(None), s.ext_ior) for s in items]
-    # The GPU renders the deterministic scenes: directional and point lights.
-    deterministic = env is None and not textures and m.name in _gpu.models()
-    if device == "gpu" and not deterministic:
+    on_gpu = not textures and m.name in _gpu.models()
+    if device == "gpu" and not on_gpu:
         raise ValueError(
-            f"device='gpu' renders directional and point lights with the models {_gpu.models()}; environment "
-            "lights, per-element textures and the reference run on the CPU: use device='cpu' or 'auto'"
+            f"device='gpu' renders the models {_gpu.models()}; per-element textures and the reference run on the "
+            "CPU: use device='cpu' or 'auto'"
         )
-    if deterministic and _gpu.use_gpu(device, m.name):
-        out = _lamina.render_gpu(layers, m.name, options, shape, camera, specs, width, height)
+    if on_gpu and _gpu.use_gpu(device, m.name):
+        out = _lamina.render_gpu(layers, m.name, options, shape, camera, specs, width, height, env, spp, seed)
         return out[0] if single else out
     out = np.empty((len(items), height, width, 3), dtype=np.float32)
     band = max(1, 4096 // width)

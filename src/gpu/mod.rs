@@ -10,7 +10,8 @@
 //! tables are uploaded once per stack and options and kept (`uploaded`). Inputs of any length are split into
 //! dispatches of at most CHUNK pairs. The renderer (`render`, shaders/scene.wgsl and render.wgsl) renders stacks,
 //! and Oat 2006's gooey layers (`oat`, shaders/oat.wgsl), on the sphere, the plane and meshes (shaders/mesh.wgsl,
-//! rasterized by raster.wgsl) under directional and point lights. Device errors come back as values.
+//! rasterized by raster.wgsl) under directional and point lights; stacks also under an environment (env.wgsl, with
+//! the models' sampling mixtures of sample.wgsl). Device errors come back as values.
 
 pub mod oat;
 
@@ -28,8 +29,12 @@ use wgpu::util::DeviceExt;
 pub const OPTICS: &str = include_str!("shaders/optics.wgsl");
 /// The renderer's scene: camera, shapes and lights, composed before the kernels that render it.
 pub const SCENE: &str = include_str!("shaders/scene.wgsl");
-/// The renderer's deterministic kernel, composed after a model and SCENE.
+/// The renderer's deterministic kernels, composed after a model and SCENE.
 pub const RENDER: &str = include_str!("shaders/render.wgsl");
+/// The renderer's environment-lit kernels, composed after RENDER.
+pub const ENV: &str = include_str!("shaders/env.wgsl");
+/// Importance sampling (the models' mixtures), composed after OPTICS.
+pub const SAMPLE: &str = include_str!("shaders/sample.wgsl");
 /// Triangle meshes, composed after SCENE.
 pub const MESH: &str = include_str!("shaders/mesh.wgsl");
 /// The mesh's rasterization into visibility targets, composed after MESH.
@@ -57,9 +62,9 @@ pub const MODELS: &[(&str, &str)] = &[
     ("albedo_scaling", concat!(include_str!("shaders/layers.wgsl"), include_str!("shaders/albedo_scaling.wgsl"))),
 ];
 
-/// A model's complete shader source: the primitives, then the model.
+/// A model's complete shader source: the primitives and sampling, then the model.
 pub fn compose(model: &str) -> Option<String> {
-    MODELS.iter().find(|(name, _)| *name == model).map(|(_, src)| format!("{OPTICS}\n{src}"))
+    MODELS.iter().find(|(name, _)| *name == model).map(|(_, src)| format!("{OPTICS}\n{SAMPLE}\n{src}"))
 }
 
 /// Whether a model has a GPU implementation.
@@ -75,20 +80,24 @@ pub fn compose_raster() -> String {
     format!("{OPTICS}\n{SCENE}\n{MESH}\n{RASTER}")
 }
 
-/// A model's render shader: the model, the scene, the mesh and the render kernels.
+/// A model's render shader: the model, the scene, the mesh and the render kernels, deterministic and
+/// environment-lit.
 pub fn compose_render(model: &str) -> Option<String> {
-    compose(model).map(|m| format!("{m}\n{SCENE}\n{MESH}\n{RENDER}"))
+    compose(model).map(|m| format!("{m}\n{SCENE}\n{MESH}\n{RENDER}\n{ENV}"))
 }
 
-/// The adapter, its device, per model (in the order of MODELS) its eval pipeline and its render pipelines for the
-/// sphere or plane and for a mesh, Oat's kernels (in the order of oat::KERNELS) and the mesh's rasterization in uv
+/// The render kernels: for the sphere or plane and for a mesh, deterministic, then under an environment.
+const RENDER_KERNELS: [&str; 4] = ["render", "render_mesh", "render_env", "render_mesh_env"];
+
+/// The adapter, its device, per model (in the order of MODELS) its eval pipeline and its render pipelines
+/// (RENDER_KERNELS), each compiled on first use (drivers take seconds per kernel), Oat's kernels (in the order of oat::KERNELS) and the mesh's rasterization in uv
 /// space and through the camera.
 pub struct Gpu {
     pub info: wgpu::AdapterInfo,
     device: wgpu::Device,
     queue: wgpu::Queue,
-    pipelines: Vec<wgpu::ComputePipeline>,
-    renderers: Vec<[wgpu::ComputePipeline; 2]>,
+    pipelines: Vec<OnceLock<wgpu::ComputePipeline>>,
+    renderers: Vec<[OnceLock<wgpu::ComputePipeline>; 4]>,
     oat: [wgpu::ComputePipeline; 6],
     raster: [wgpu::RenderPipeline; 2],
 }
@@ -172,32 +181,53 @@ async fn create() -> std::result::Result<Gpu, String> {
         })
         .await
         .map_err(|e| format!("the GPU adapter refused a device: {e}"))?;
-    let pipeline = |name: &str, source: String, entry: &str| {
-        let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
-            label: Some(name),
-            source: wgpu::ShaderSource::Wgsl(source.into()),
-        });
-        device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
-            label: Some(name),
-            layout: None,
-            module: &module,
-            entry_point: Some(entry),
-            compilation_options: Default::default(),
-            cache: None,
-        })
-    };
-    let pipelines = MODELS.iter().map(|(name, _)| pipeline(name, compose(name).expect("listed"), "main")).collect();
-    let renderers = MODELS
-        .iter()
-        .map(|(name, _)| ["render", "render_mesh"].map(|e| pipeline(name, compose_render(name).expect("listed"), e)))
-        .collect();
-    let oat = oat::KERNELS.map(|entry| pipeline("oat", oat::compose(), entry));
+    let oat_module = compute_module(&device, "oat", oat::compose());
+    let oat = oat::KERNELS.map(|entry| compute_pipeline(&device, &oat_module, entry));
+    let pipelines = MODELS.iter().map(|_| OnceLock::new()).collect();
+    let renderers = MODELS.iter().map(|_| std::array::from_fn(|_| OnceLock::new())).collect();
     let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
         label: Some("raster"),
         source: wgpu::ShaderSource::Wgsl(compose_raster().into()),
     });
     let raster = [("uv_vertex", false), ("camera_vertex", true)].map(|(e, d)| raster_pipeline(&device, &module, e, d));
     Ok(Gpu { info: adapter.get_info(), device, queue, pipelines, renderers, oat, raster })
+}
+
+fn compute_module(device: &wgpu::Device, name: &str, source: String) -> wgpu::ShaderModule {
+    device.create_shader_module(wgpu::ShaderModuleDescriptor {
+        label: Some(name),
+        source: wgpu::ShaderSource::Wgsl(source.into()),
+    })
+}
+
+fn compute_pipeline(device: &wgpu::Device, module: &wgpu::ShaderModule, entry: &str) -> wgpu::ComputePipeline {
+    device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+        label: Some(entry),
+        layout: None,
+        module,
+        entry_point: Some(entry),
+        compilation_options: Default::default(),
+        cache: None,
+    })
+}
+
+impl Gpu {
+    /// Model k's eval pipeline (MODELS order), compiled on first use.
+    fn eval_pipeline(&self, k: usize) -> &wgpu::ComputePipeline {
+        self.pipelines[k].get_or_init(|| {
+            let (name, _) = MODELS[k];
+            compute_pipeline(&self.device, &compute_module(&self.device, name, compose(name).expect("listed")), "main")
+        })
+    }
+
+    /// Model k's render pipeline RENDER_KERNELS[kernel], compiled on first use.
+    fn render_pipeline(&self, k: usize, kernel: usize) -> &wgpu::ComputePipeline {
+        self.renderers[k][kernel].get_or_init(|| {
+            let (name, _) = MODELS[k];
+            let module = compute_module(&self.device, name, compose_render(name).expect("listed"));
+            compute_pipeline(&self.device, &module, RENDER_KERNELS[kernel])
+        })
+    }
 }
 
 /// A model prepared for the GPU: its shader's parameters (uniform words; the pair count is set per dispatch at
@@ -232,6 +262,9 @@ fn dist_code(dist: Distribution) -> u32 {
         Distribution::Beckmann => 1,
     }
 }
+
+/// Lobes of a sampling mixture on the GPU (MAX_LOBES in shaders/sample.wgsl).
+const MAX_LOBES: usize = 16;
 
 /// The single-pass layers as single_pass.wgsl reads them, and the nodes per Fresnel table (0: none): per layer 9
 /// values (kind: 0 dielectric, 1 conductor, 2 diffuse; the microfacet's distribution, smooth flag, αx, αy, cos φ,
@@ -573,7 +606,7 @@ fn prepared(
     }
     let gpu = gpu()?;
     let up = upload(gpu, model, stack, opts)?;
-    let pipeline = &gpu.pipelines[MODELS.iter().position(|m| m.0 == up.kernel.model).expect("a listed model")];
+    let pipeline = gpu.eval_pipeline(MODELS.iter().position(|m| m.0 == up.kernel.model).expect("a listed model"));
     let limit = gpu.device.limits().max_storage_buffer_binding_size as usize;
     let chunk = CHUNK.min((limit / (4 * up.kernel.channels.max(6))).max(64));
     Ok((gpu, up, pipeline, chunk))
@@ -634,6 +667,8 @@ pub struct Scene {
     pub mesh: Option<(Vec<f32>, Vec<u32>)>,
     pub camera: Option<[[f32; 3]; 4]>,
     pub lights: Vec<[f32; 8]>,
+    /// An environment light: EnvParams' words, the RGB radiance and the sampling distributions (Environment::gpu_data).
+    pub env: Option<([u32; 8], Vec<f32>, Vec<f32>)>,
 }
 
 /// The scene's uniform parameters (RenderParams in scene.wgsl) and light rows, on the device.
@@ -794,7 +829,26 @@ pub fn render(model: &str, stacks: &[Stack], opts: &Options, scene: &Scene) -> R
 
 fn render_scoped(gpu: &'static Gpu, model: &str, stacks: &[Stack], opts: &Options, scene: &Scene) -> Result<Vec<f32>> {
     let Some(k) = MODELS.iter().position(|m| m.0 == model) else { return Err(unsupported(model)) };
-    let pipeline = &gpu.renderers[k][scene.mesh.is_some() as usize];
+    let pipeline = gpu.render_pipeline(k, scene.mesh.is_some() as usize + 2 * scene.env.is_some() as usize);
+    if scene.env.is_some() {
+        if let Some(s) = stacks.iter().find(|s| s.layers.len() >= MAX_LOBES) {
+            return value_error(format!(
+                "an environment light on the GPU takes stacks of at most {} layers (the sampling mixture holds \
+                 {MAX_LOBES} lobes), got {}; use device='cpu'",
+                MAX_LOBES - 1,
+                s.layers.len()
+            ));
+        }
+    }
+    let env = scene.env.as_ref().map(|(words, rgb, dists)| {
+        let storage = wgpu::BufferUsages::STORAGE;
+        let params = init(gpu, "env params", bytemuck::cast_slice(words), wgpu::BufferUsages::UNIFORM);
+        [
+            params,
+            init(gpu, "env", bytemuck::cast_slice(rgb), storage),
+            init(gpu, "env dists", bytemuck::cast_slice(dists), storage),
+        ]
+    });
     let pixels = scene.width * scene.height;
     let (render_params, lights) = scene_buffers(gpu, scene);
     let size = (4 * 3 * pixels) as u64;
@@ -837,6 +891,15 @@ fn render_scoped(gpu: &'static Gpu, model: &str, stacks: &[Stack], opts: &Option
         if let Some((vertices, triangles, seen)) = &mesh {
             let resources = [(0, Res::Buffer(vertices)), (1, Res::Buffer(triangles)), (2, Res::View(seen))];
             groups.push(group(gpu, pipeline, 2, &resources));
+        }
+        if let Some(buffers) = &env {
+            if mesh.is_none() {
+                // Groups are numbered: without a mesh, an empty group 2 keeps the environment at 3.
+                groups.push(group(gpu, pipeline, 2, &[]));
+            }
+            let resources: Vec<(u32, Res)> =
+                buffers.iter().enumerate().map(|(b, x)| (b as u32, Res::Buffer(x))).collect();
+            groups.push(group(gpu, pipeline, 3, &resources));
         }
         dispatch(&mut encoder, pipeline, &groups.iter().collect::<Vec<_>>(), pixels);
         encoder.copy_buffer_to_buffer(&image, 0, &read, s as u64 * size, size);

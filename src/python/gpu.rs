@@ -6,7 +6,7 @@ use super::arrays::{batch, Kind};
 use super::oat::OatMaterial;
 use crate::gpu;
 use crate::render::{pinhole, Light, Shape};
-use numpy::{PyArrayDyn, PyArrayMethods, PyUntypedArrayMethods};
+use numpy::{PyArrayDyn, PyArrayMethods, PyReadonlyArray3, PyUntypedArrayMethods};
 use pyo3::exceptions::PyRuntimeError;
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyList};
@@ -88,11 +88,11 @@ pub fn eval_gpu<'py>(
     numpy::PyArray1::from_vec(py, f).reshape(shape).map(|a| a.into_any())
 }
 
-/// Renders stacks under directional and point lights on the GPU: (stacks, height, width, 3) float32. `stacks` is a
-/// list of (layers, ext_ior); `shape` "sphere" or "plane"; `camera` None (orthographic) or (origin, target, fov in
-/// radians); `lights` (kind, vector, rgb) as for render.
+/// Renders stacks on the GPU: (stacks, height, width, 3) float32. `stacks` is a list of (layers, ext_ior); `shape`
+/// "sphere", "plane" or a mesh; `camera` None (orthographic) or (origin, target, fov in radians); `lights` (kind,
+/// vector, rgb) and `env` (None or (map, scale, rotation), sampled `spp` times per pixel from `seed`) as for render.
 #[pyfunction]
-#[pyo3(signature = (stacks, model, options, shape, camera, lights, width, height))]
+#[pyo3(signature = (stacks, model, options, shape, camera, lights, width, height, env=None, spp=1, seed=0))]
 #[allow(clippy::too_many_arguments)]
 pub fn render_gpu<'py>(
     py: Python<'py>,
@@ -104,6 +104,9 @@ pub fn render_gpu<'py>(
     lights: Vec<(String, [f64; 3], [f64; 3])>,
     width: usize,
     height: usize,
+    env: Option<(PyReadonlyArray3<'py, f64>, f64, f64)>,
+    spp: usize,
+    seed: u64,
 ) -> PyResult<Bound<'py, PyAny>> {
     let (opts, _) = parse_options(model, options)?;
     let mut parsed = Vec::new();
@@ -111,7 +114,8 @@ pub fn render_gpu<'py>(
         let (layers, ext_ior): (Bound<'py, PyList>, f64) = item.extract()?;
         parsed.push(parse_stack(&layers, ext_ior)?);
     }
-    let scene = scene(shape, camera, lights, width, height)?;
+    let mut scene = scene(shape, camera, lights, width, height)?;
+    scene.env = env.map(super::render::environment).transpose()?.map(|e| e.gpu_data(spp, seed));
     let image = py.detach(|| gpu::render(model, &parsed, &opts, &scene))?;
     numpy::PyArray1::from_vec(py, image).reshape([parsed.len(), height, width, 3]).map(|a| a.into_any())
 }
@@ -145,7 +149,7 @@ fn scene(
             .map(|x| x as f32),
         );
     }
-    Ok(gpu::Scene { width, height, shape, mesh, camera, lights: rows })
+    Ok(gpu::Scene { width, height, shape, mesh, camera, lights: rows, env: None })
 }
 
 /// Renders Oat materials on the GPU: (materials, height, width, 3) float32, the arguments as for render_gpu, and

@@ -70,6 +70,13 @@ pub fn light(kind: &str, v: [f64; 3], rgb: [f64; 3]) -> PyResult<Light> {
 
 /// Renders rows first..first + rows of every stack: float32 (stacks, rows, width, 3) linear RGB radiance. `stacks` is
 /// a list of (layers, ext_ior); `textures` maps the model's per-element inputs to (h, w, c) arrays looked up by uv;
+/// An environment light from (map (h, w, 3), scale, rotation).
+pub fn environment((map, scale, rotation): (PyReadonlyArray3<'_, f64>, f64, f64)) -> PyResult<Environment> {
+    let s = map.shape();
+    let rgb = map.as_slice()?.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect();
+    Ok(Environment::new(s[1], s[0], rgb, scale, rotation))
+}
+
 /// `camera` is None (orthographic) or (origin, target, fov in radians); `env` is None or (map (h, w, 3), scale,
 /// rotation).
 #[pyfunction]
@@ -94,14 +101,7 @@ pub fn render<'py>(
 ) -> PyResult<Bound<'py, PyAny>> {
     let (shape, camera) = (self::shape(shape)?, self::camera(camera));
     let lights = lights.iter().map(|(k, v, rgb)| light(k, *v, *rgb)).collect::<PyResult<Vec<_>>>()?;
-    let env = match env {
-        None => None,
-        Some((map, scale, rotation)) => {
-            let s = map.shape();
-            let rgb = map.as_slice()?.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect();
-            Some(Environment::new(s[1], s[0], rgb, scale, rotation))
-        }
-    };
+    let env = env.map(environment).transpose()?;
     let mut shaders = Vec::new();
     for (k, item) in stacks.iter().enumerate() {
         let pair =

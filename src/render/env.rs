@@ -45,6 +45,11 @@ impl Pdf1 {
         ((i as f64 + du.clamp(0.0, 1.0)) / n as f64, self.density(i))
     }
 
+    /// The function, its CDF and its integral in one row, as shaders/env.wgsl reads a distribution.
+    fn gpu_row(&self) -> impl Iterator<Item = f32> + '_ {
+        self.func.iter().chain(&self.cdf).chain([&self.integral]).map(|&x| x as f32)
+    }
+
     fn density(&self, i: usize) -> f64 {
         if self.integral > 0.0 {
             self.func[i] / self.integral
@@ -78,6 +83,17 @@ impl Environment {
             .collect();
         let marginal = Pdf1::new(rows.iter().map(|r| r.integral).collect());
         Environment { width, height, rgb, rotation, rows, marginal }
+    }
+
+    /// The map as shaders/env.wgsl reads it: its parameters (EnvParams, with `spp` and `seed` for the renderer), the
+    /// RGB radiance (3 values per texel) and the distributions (the marginal over the rows, then each row's).
+    pub fn gpu_data(&self, spp: usize, seed: u64) -> ([u32; 8], Vec<f32>, Vec<f32>) {
+        let seed = (seed ^ (seed >> 32)) as u32;
+        let words =
+            [self.width as u32, self.height as u32, spp as u32, seed, (self.rotation as f32).to_bits(), 0, 0, 0];
+        let rgb = self.rgb.iter().flatten().map(|&x| x as f32).collect();
+        let dists = self.marginal.gpu_row().chain(self.rows.iter().flat_map(Pdf1::gpu_row)).collect();
+        (words, rgb, dists)
     }
 
     /// Map coordinates (u, v) ∈ [0, 1)² of the world direction d.

@@ -27,10 +27,10 @@ struct Params {
 // Fgd::lookup: quadrilinear in (μ, α, log η, √(κ / κmax)).
 fn fgd_lookup(mu: f32, alpha: f32, eta: f32, kappa: f32) -> f32 {
     let x = vec4<f32>(mu, alpha, log(eta / params.eta_min) / log(params.eta_max / params.eta_min), sqrt(max(kappa / params.kappa_max, 0.0)));
-    let c = grid_corners(x, params.fgd_dims, 4u);
+    let g = grid_point(x, params.fgd_dims, 4u);
     var v = 0.0;
-    for (var k = 0u; k < c.count; k++) {
-        v += c.weight[k] * fgd[c.index[k]];
+    for (var k = 0u; k < 16u; k++) {
+        v += corner_weight(g, k) * fgd[corner_index(g, k)];
     }
     return v;
 }
@@ -84,6 +84,52 @@ fn eval_channel(wi: vec3<f32>, wo: vec3<f32>, ch: u32) -> f32 {
         weight *= scale(layer, wi, wo, ch);
     }
     return f;
+}
+
+// Prepared::terms, the sampling part: each rough lobe by its albedo times the scales above, the diffuse base by its
+// albedo, mean over channels, with the defensive cosine share.
+fn proposals(wo: vec3<f32>) {
+    clear_mixture();
+    let share = 1.0 / f32(params.channels);
+    for (var ch = 0u; ch < params.channels; ch++) {
+        var weight = 1.0;
+        for (var l = 0u; l < params.layers; l++) {
+            let layer = sp_layer(l);
+            if layer.kind != DIELECTRIC && layer.kind != CONDUCTOR {
+                add_lobe(COSINE, share * weight * value(layer, ch, ALBEDO), cosine_lobe());
+                break;
+            }
+            if layer.mf.smooth_ == 0u {
+                add_lobe(REFLECTION, share * weight * albedo(layer, wo.z, ch), layer.mf);
+            }
+            if layer.kind == CONDUCTOR {
+                break;
+            }
+            weight *= scale(layer, wo, wo, ch);
+        }
+    }
+    add_defensive_share();
+}
+
+// Prepared::specular: the Dirac reflection at wo of channel ch, from smooth interfaces seen through smooth ones.
+fn specular(wo: vec3<f32>, ch: u32) -> f32 {
+    if wo.z <= 0.0 {
+        return 0.0;
+    }
+    var mirror = 0.0;
+    var weight = 1.0;
+    for (var l = 0u; l < params.layers; l++) {
+        let layer = sp_layer(l);
+        if (layer.kind != DIELECTRIC && layer.kind != CONDUCTOR) || layer.mf.smooth_ == 0u {
+            break;
+        }
+        mirror += weight * interface_fresnel(layer, wo.z, ch);
+        if layer.kind == CONDUCTOR {
+            break;
+        }
+        weight *= scale(layer, wo, wo, ch);
+    }
+    return mirror;
 }
 
 fn load(i: u32, which: u32) -> vec3<f32> {

@@ -141,6 +141,64 @@ fn transmitted(c: Corners, down: bool, ch: u32) -> f32 {
     return v;
 }
 
+// Lobe j of the table interpolated at the corners: its GGX microfacet and where its energies start in the record.
+struct TableLobe {
+    mf: Microfacet,
+    energy: u32,
+}
+
+fn table_lobe(c: Corners, j: u32) -> TableLobe {
+    let at = j * params.width;
+    if params.azimuths > 1u {
+        let e = eigen_frame(interpolate(c, at), interpolate(c, at + 1u), interpolate(c, at + 2u));
+        return TableLobe(ggx(e.x, e.y, e.z, e.w), at + 3u);
+    }
+    let a = interpolate(c, at);
+    return TableLobe(ggx(a, a, 1.0, 0.0), at + 1u);
+}
+
+// Prepared::proposals: the table's lobes at wo, each by its mean energy (none when smooth), and the diffuse base by
+// ρ T↑² / (1 − ρ R̄↑).
+fn proposals(wo: vec3<f32>) {
+    clear_mixture();
+    let c = corners(wo.z, wo.x, wo.y);
+    for (var j = 0u; j < params.lobes; j++) {
+        let lobe = table_lobe(c, j);
+        if lobe.mf.smooth_ == 0u {
+            var energy = 0.0;
+            for (var ch = 0u; ch < params.channels; ch++) {
+                energy += interpolate(c, lobe.energy + ch);
+            }
+            add_lobe(REFLECTION, energy / f32(params.channels), lobe.mf);
+        }
+    }
+    if params.has_diffuse != 0u {
+        var energy = 0.0;
+        for (var ch = 0u; ch < params.channels; ch++) {
+            let d = diffuse[ch];
+            let t = transmitted(c, false, ch);
+            energy += d.x * t * t / (1.0 - d.x * d.y);
+        }
+        add_lobe(COSINE, energy / f32(params.channels), cosine_lobe());
+    }
+}
+
+// Prepared::specular: the energies of the smooth lobes at wo, channel ch.
+fn specular(wo: vec3<f32>, ch: u32) -> f32 {
+    if wo.z <= 0.0 {
+        return 0.0;
+    }
+    let c = corners(wo.z, wo.x, wo.y);
+    var mirror = 0.0;
+    for (var j = 0u; j < params.lobes; j++) {
+        let lobe = table_lobe(c, j);
+        if lobe.mf.smooth_ != 0u {
+            mirror += interpolate(c, lobe.energy + ch);
+        }
+    }
+    return mirror;
+}
+
 fn load(i: u32, which: u32) -> vec3<f32> {
     let k = 6u * i + 3u * which;
     return vec3<f32>(pairs[k], pairs[k + 1u], pairs[k + 2u]);
@@ -159,22 +217,11 @@ fn eval_pair(wi: vec3<f32>, wo: vec3<f32>, base: u32) {
         cos_theta = symmetric_cosine(wi, wo);
     }
     let c = corners(cos_theta, wo.x, wo.y);
-    let anisotropic = params.azimuths > 1u;
     for (var j = 0u; j < params.lobes; j++) {
-        let at = j * params.width;
-        var mf: Microfacet;
-        var first = 1u;
-        if anisotropic {
-            let e = eigen_frame(interpolate(c, at), interpolate(c, at + 1u), interpolate(c, at + 2u));
-            mf = ggx(e.x, e.y, e.z, e.w);
-            first = 3u;
-        } else {
-            let a = interpolate(c, at);
-            mf = ggx(a, a, 1.0, 0.0);
-        }
-        let shape = reflection_geometry(mf, params.g2, wi, wo).x;
+        let lobe = table_lobe(c, j);
+        let shape = reflection_geometry(lobe.mf, params.g2, wi, wo).x;
         for (var ch = 0u; ch < params.channels; ch++) {
-            out[base + ch] += interpolate(c, at + first + ch) * shape;
+            out[base + ch] += interpolate(c, lobe.energy + ch) * shape;
         }
     }
     if params.has_diffuse != 0u {

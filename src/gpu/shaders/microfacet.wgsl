@@ -26,6 +26,33 @@ fn smooth_coat_lambert(albedo: f32, eta: f32, f_int: f32, cos_i: f32, cos_o: f32
     return albedo * t * FRAC_1_PI / (eta * eta * (1.0 - albedo * f_int));
 }
 
+// Prepared::proposals: the conductor's lobe (none when smooth), or the cosine.
+fn proposals(wo: vec3<f32>) {
+    clear_mixture();
+    if params.kind == 0u {
+        if params.mf.smooth_ == 0u {
+            add_lobe(REFLECTION, 1.0, params.mf);
+        }
+    } else {
+        add_lobe(COSINE, 1.0, cosine_lobe());
+    }
+}
+
+// Prepared::specular: the Dirac reflection of a smooth conductor or of the smooth coat, channel ch.
+fn specular(wo: vec3<f32>, ch: u32) -> f32 {
+    if wo.z <= 0.0 {
+        return 0.0;
+    }
+    let p = channel[ch];
+    if params.kind == 0u && params.mf.smooth_ != 0u {
+        return fresnel_form_conductor(params.fresnel, wo.z, p.x, p.y);
+    }
+    if params.kind == 2u {
+        return fresnel_dielectric(wo.z, p.x);
+    }
+    return 0.0;
+}
+
 // Direction `which` (0: wi, 1: wo) of pair i.
 fn load(i: u32, which: u32) -> vec3<f32> {
     let k = 6u * i + 3u * which;

@@ -294,36 +294,158 @@ fn table_node(x: f32, n: u32) -> Node {
 
 
 // tables::Grid::lookup's corners: for coordinates x (each clamped to [0, 1]) on a grid of d ≤ 4 axes with dims[a]
-// nodes each (the last axis fastest), the 2^d corner records' indices and multilinear weights.
-struct GridCorners {
-    index: array<u32, 16>,
-    weight: array<f32, 16>,
-    count: u32,
+// nodes each (the last axis fastest), the lower corner's record index, the axes' strides and the fractions; the 2^d
+// corners' indices and multilinear weights follow from them (corner_index, corner_weight).
+struct GridPoint {
+    base: u32,
+    d: u32,
+    strides: vec4<u32>,
+    f: vec4<f32>,
 }
 
-fn grid_corners(x: vec4<f32>, dims: vec4<u32>, d: u32) -> GridCorners {
-    var nodes: array<Node, 4>;
-    var strides: array<u32, 4>;
+fn grid_point(x: vec4<f32>, dims: vec4<u32>, d: u32) -> GridPoint {
+    var g = GridPoint(0u, d, vec4<u32>(0u), vec4<f32>(0.0));
     var stride = 1u;
-    var base = 0u;
     for (var a = i32(d) - 1; a >= 0; a--) {
-        strides[a] = stride;
-        nodes[a] = table_node(x[a], dims[a]);
-        base += u32(nodes[a].i) * stride;
+        let node = table_node(x[a], dims[a]);
+        g.strides[a] = stride;
+        g.f[a] = node.f;
+        g.base += u32(node.i) * stride;
         stride *= dims[a];
     }
-    var out: GridCorners;
-    out.count = 1u << d;
-    for (var k = 0u; k < out.count; k++) {
-        var weight = 1.0;
-        var index = base;
-        for (var a = 0u; a < d; a++) {
-            let bit = (k >> (d - 1u - a)) & 1u;
-            weight *= select(1.0 - nodes[a].f, nodes[a].f, bit == 1u);
-            index += bit * strides[a];
-        }
-        out.index[k] = index;
-        out.weight[k] = weight;
+    return g;
+}
+
+// Corner k's record index: bit d − 1 − a of k steps along axis a.
+fn corner_index(g: GridPoint, k: u32) -> u32 {
+    var index = g.base;
+    for (var a = 0u; a < g.d; a++) {
+        index += ((k >> (g.d - 1u - a)) & 1u) * g.strides[a];
     }
-    return out;
+    return index;
+}
+
+// Corner k's multilinear weight.
+fn corner_weight(g: GridPoint, k: u32) -> f32 {
+    var weight = 1.0;
+    for (var a = 0u; a < g.d; a++) {
+        weight *= select(1.0 - g.f[a], g.f[a], ((k >> (g.d - 1u - a)) & 1u) == 1u);
+    }
+    return weight;
+}
+
+// optics::reflect: w mirrored about the unit normal n.
+fn reflect_about(w: vec3<f32>, n: vec3<f32>) -> vec3<f32> {
+    return 2.0 * dot(w, n) * n - w;
+}
+
+// sampling::cosine_hemisphere: a cosine-weighted direction about +z from two uniform numbers.
+fn cosine_hemisphere(u1: f32, u2: f32) -> vec3<f32> {
+    let r = sqrt(u1);
+    let phi = 2.0 * PI * u2;
+    return vec3<f32>(r * cos(phi), r * sin(phi), sqrt(max(1.0 - u1, 0.0)));
+}
+
+// Microfacet::pdf_visible: the visible normals' density G1(wi, m) max(0, wi·m) D(m) / cos θi (Heitz 2018 eq. 3).
+fn mf_pdf_visible(mf: Microfacet, wi: vec3<f32>, m: vec3<f32>) -> f32 {
+    if wi.z <= 0.0 {
+        return 0.0;
+    }
+    return mf_g1(mf, wi, m) * max(dot(wi, m), 0.0) * mf_d(mf, m) / wi.z;
+}
+
+// distribution::erf_inv: Giles 2010's single-precision approximation (the CPU refines it by Newton in float64).
+fn erf_inv(y_in: f32) -> f32 {
+    let y = clamp(y_in, -0.99999994, 0.99999994);
+    var w = -log((1.0 - y) * (1.0 + y));
+    var p: f32;
+    if w < 5.0 {
+        w -= 2.5;
+        p = 2.81022636e-08;
+        p = 3.43273939e-07 + p * w;
+        p = -3.5233877e-06 + p * w;
+        p = -4.39150654e-06 + p * w;
+        p = 0.00021858087 + p * w;
+        p = -0.00125372503 + p * w;
+        p = -0.00417768164 + p * w;
+        p = 0.246640727 + p * w;
+        p = 1.50140941 + p * w;
+    } else {
+        w = sqrt(w) - 3.0;
+        p = -0.000200214257;
+        p = 0.000100950558 + p * w;
+        p = 0.00134934322 + p * w;
+        p = -0.00367342844 + p * w;
+        p = 0.00573950773 + p * w;
+        p = -0.0076224613 + p * w;
+        p = 0.00943887047 + p * w;
+        p = 1.00167406 + p * w;
+        p = 2.83297682 + p * w;
+    }
+    return p * y;
+}
+
+// distribution::beckmann_sample_slopes: the visible slopes of the standard Beckmann configuration seen from v
+// (Heitz & d'Eon 2014 §4): x by inverting its CDF (Newton safeguarded by bisection), y by erf⁻¹, rotated to v's azimuth.
+fn beckmann_sample_slopes(v: vec3<f32>, u1: f32, u2: f32) -> vec2<f32> {
+    let sin_t = sqrt(max(1.0 - v.z * v.z, 0.0));
+    var cos_phi = 1.0;
+    var sin_phi = 0.0;
+    var x: f32;
+    if sin_t > 1e-6 {
+        cos_phi = v.x / sin_t;
+        sin_phi = v.y / sin_t;
+    }
+    let c = v.z / max(sin_t, 1e-30);
+    if sin_t <= 1e-6 || c > 1e6 {
+        x = erf_inv(2.0 * u1 - 1.0);
+    } else {
+        let sqrt_pi = sqrt(PI);
+        let target_ = u1 * (0.5 * c * sqrt_pi * (1.0 + erf(c)) + 0.5 * exp(-c * c));
+        var lo = -6.0;
+        var hi = min(c, 6.0);
+        x = 0.5 * (lo + hi);
+        for (var k = 0; k < 32; k++) {
+            let f = 0.5 * c * sqrt_pi * (1.0 + erf(x)) + 0.5 * exp(-x * x) - target_;
+            if f > 0.0 {
+                hi = x;
+            } else {
+                lo = x;
+            }
+            let newton = x - f / ((c - x) * exp(-x * x));
+            x = select(0.5 * (lo + hi), newton, newton > lo && newton < hi);
+            if hi - lo < 1e-6 {
+                break;
+            }
+        }
+    }
+    let y = erf_inv(2.0 * u2 - 1.0);
+    return vec2<f32>(cos_phi * x - sin_phi * y, sin_phi * x + cos_phi * y);
+}
+
+// Microfacet::sample_visible: a visible normal for wi from two uniform numbers (GGX: Heitz 2018 listing 1;
+// Beckmann: Heitz & d'Eon 2014 §4).
+fn mf_sample_visible(mf: Microfacet, wi: vec3<f32>, u1: f32, u2: f32) -> vec3<f32> {
+    let v = to_tangent_frame(wi, mf.cos_phi, mf.sin_phi);
+    let vh = normalize(vec3<f32>(mf.alpha_x * v.x, mf.alpha_y * v.y, v.z));
+    var m: vec3<f32>;
+    if mf.dist == 0u {
+        let len2 = vh.x * vh.x + vh.y * vh.y;
+        var t1 = vec3<f32>(1.0, 0.0, 0.0);
+        if len2 > 0.0 {
+            t1 = vec3<f32>(-vh.y, vh.x, 0.0) / sqrt(len2);
+        }
+        let t2 = cross(vh, t1);
+        let r = sqrt(u1);
+        let phi = 2.0 * PI * u2;
+        let p1 = r * cos(phi);
+        let s = 0.5 * (1.0 + vh.z);
+        let p2 = (1.0 - s) * sqrt(max(1.0 - p1 * p1, 0.0)) + s * r * sin(phi);
+        let nh = p1 * t1 + p2 * t2 + sqrt(max(1.0 - p1 * p1 - p2 * p2, 0.0)) * vh;
+        m = vec3<f32>(mf.alpha_x * nh.x, mf.alpha_y * nh.y, max(nh.z, 0.0));
+    } else {
+        let slope = beckmann_sample_slopes(vh, u1, u2);
+        m = vec3<f32>(-slope.x * mf.alpha_x, -slope.y * mf.alpha_y, 1.0);
+    }
+    return to_tangent_frame(normalize(m), mf.cos_phi, -mf.sin_phi);
 }

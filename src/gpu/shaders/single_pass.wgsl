@@ -55,3 +55,79 @@ fn walk(wi_in: vec3<f32>, wo_in: vec3<f32>, ch: u32) -> f32 {
     }
     return f;
 }
+
+// The mean relative IOR of a layer over the channels (Walk::terms refracts at it).
+fn mean_eta(layer: Layer) -> f32 {
+    var eta = 0.0;
+    for (var c = 0u; c < params.channels; c++) {
+        eta += value(layer, c, ETA);
+    }
+    return eta / f32(params.channels);
+}
+
+// Walk::terms, the sampling part: each rough interface's lobe and the diffuse terms with their energies estimated
+// at wo (Fresnel at the macro-surface cosine, Snell at the mean IOR, Beer–Lambert both ways), mean over channels.
+fn proposals(wo: vec3<f32>) {
+    clear_mixture();
+    let share = 1.0 / f32(params.channels);
+    for (var ch = 0u; ch < params.channels; ch++) {
+        var weight = 1.0;
+        var cos = wo.z;
+        for (var l = 0u; l < params.layers; l++) {
+            let layer = sp_layer(l);
+            if layer.kind == DIELECTRIC {
+                let f = interface_fresnel(layer, cos, ch);
+                if layer.mf.smooth_ == 0u {
+                    add_lobe(REFLECTION, share * weight * f, layer.mf);
+                }
+                let sin_t = sqrt(max(1.0 - cos * cos, 0.0)) / mean_eta(layer);
+                if sin_t >= 1.0 {
+                    break;
+                }
+                cos = sqrt(1.0 - sin_t * sin_t);
+                let k = exp(-2.0 * value(layer, ch, SIGMA_T) * layer.thickness / max(cos, 1e-9));
+                let t = weight * (1.0 - f) * (1.0 - f);
+                add_lobe(COSINE, share * t * (1.0 - k) * value(layer, ch, ALBEDO), cosine_lobe());
+                weight = t * k;
+            } else if layer.kind == CONDUCTOR {
+                if layer.mf.smooth_ == 0u {
+                    add_lobe(REFLECTION, share * weight * interface_fresnel(layer, cos, ch), layer.mf);
+                }
+            } else {
+                add_lobe(COSINE, share * weight * value(layer, ch, ALBEDO) * value(layer, ch, GAIN), cosine_lobe());
+            }
+        }
+    }
+    add_defensive_share();
+}
+
+// Walk::specular: the Dirac reflection at wo of channel ch, from smooth interfaces seen through smooth ones.
+fn specular(wo: vec3<f32>, ch: u32) -> f32 {
+    if wo.z <= 0.0 {
+        return 0.0;
+    }
+    var mirror = 0.0;
+    var weight = 1.0;
+    var cos = wo.z;
+    for (var l = 0u; l < params.layers; l++) {
+        let layer = sp_layer(l);
+        if layer.kind != DIELECTRIC && layer.kind != CONDUCTOR {
+            break;
+        }
+        let f = interface_fresnel(layer, cos, ch);
+        if layer.mf.smooth_ == 0u {
+            break;  // nothing below a rough interface is seen as a Dirac lobe
+        }
+        mirror += weight * f;
+        if layer.kind == CONDUCTOR {
+            break;
+        }
+        let sin_t = sqrt(max(1.0 - cos * cos, 0.0)) / mean_eta(layer);
+        if sin_t >= 1.0 {
+            break;
+        }
+        cos = sqrt(1.0 - sin_t * sin_t);
+        weight *= (1.0 - f) * (1.0 - f) * exp(-2.0 * value(layer, ch, SIGMA_T) * layer.thickness / max(cos, 1e-9));
+    }
+    return mirror;
+}

@@ -41,10 +41,11 @@ fn eta_coord(eta: f32) -> f32 {
 // Steinberg::tabulated: (t, s) trilinear in (μ, α, log η), s through s / sin θ.
 fn tabulated(mu: f32, alpha: f32, eta: f32) -> vec2<f32> {
     let dims = vec4<u32>(params.n_mu, params.n_alpha, params.n_eta, 1u);
-    let c = grid_corners(vec4<f32>(mu, alpha, eta_coord(eta), 0.0), dims, 3u);
+    let g = grid_point(vec4<f32>(mu, alpha, eta_coord(eta), 0.0), dims, 3u);
     var ts = vec2<f32>(0.0);
-    for (var k = 0u; k < c.count; k++) {
-        ts += c.weight[k] * vec2<f32>(table[c.index[k] * STRIDE], table[c.index[k] * STRIDE + 1u]);
+    for (var k = 0u; k < 8u; k++) {
+        let i = corner_index(g, k) * STRIDE;
+        ts += corner_weight(g, k) * vec2<f32>(table[i], table[i + 1u]);
     }
     return vec2<f32>(ts.x, min(ts.y * sqrt(max(1.0 - mu * mu, 0.0)), 1.0));
 }

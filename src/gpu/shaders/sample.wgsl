@@ -1,0 +1,119 @@
+// Importance sampling on the GPU (src/models/sample.rs): a one-sample mixture of the lobes a model proposes for the
+// viewing direction, reflection lobes through their visible normals and diffuse terms by the cosine. Each model's
+// shader builds the mixture (its `proposals(wo)` fills `lobes`); the renderer samples it. Composed after optics.wgsl.
+
+const MAX_LOBES: u32 = 16u;
+const COSINE: u32 = 0u;
+const REFLECTION: u32 = 1u;
+// sample::DEFENSIVE: the cosine share of a layered model's mixture.
+const DEFENSIVE: f32 = 0.05;
+
+struct Lobe {
+    kind: u32,
+    weight: f32,
+    mf: Microfacet,
+}
+
+// The proposals for the current viewing direction with their (unnormalised) weights, in private memory (a kernel
+// builds one mixture at a time, and copying it by value costs the shader compilers dearly). The cosine terms are
+// gathered into one lobe: the same mixture.
+var<private> lobes: array<Lobe, MAX_LOBES>;
+var<private> lobe_count: u32;
+
+fn clear_mixture() {
+    lobe_count = 0u;
+}
+
+// Adds a lobe of energy `weight` (nothing for none, or past MAX_LOBES: the host keeps stacks within it).
+fn add_lobe(kind: u32, weight: f32, mf: Microfacet) {
+    if weight <= 0.0 {
+        return;
+    }
+    if kind == COSINE {
+        for (var k = 0u; k < lobe_count; k++) {
+            if lobes[k].kind == COSINE {
+                lobes[k].weight += weight;
+                return;
+            }
+        }
+    }
+    if lobe_count < MAX_LOBES {
+        lobes[lobe_count] = Lobe(kind, weight, mf);
+        lobe_count += 1u;
+    }
+}
+
+fn cosine_lobe() -> Microfacet {
+    return Microfacet(0u, 1u, 1.0, 1.0, 1.0, 0.0);
+}
+
+fn total_weight() -> f32 {
+    var total = 0.0;
+    for (var k = 0u; k < lobe_count; k++) {
+        total += lobes[k].weight;
+    }
+    return total;
+}
+
+// sample::defensive_mixture: the terms plus the DEFENSIVE cosine share (none when nothing has energy).
+fn add_defensive_share() {
+    let total = total_weight();
+    if total > 0.0 {
+        add_lobe(COSINE, DEFENSIVE * total / (1.0 - DEFENSIVE), cosine_lobe());
+    }
+}
+
+// sample::lobe_pdf: D_wo(h) / (4 wo·h) for a reflection lobe, cos θi / π for the cosine.
+fn lobe_pdf(lobe: Lobe, wi: vec3<f32>, wo: vec3<f32>) -> f32 {
+    if lobe.kind == COSINE {
+        return max(wi.z, 0.0) * FRAC_1_PI;
+    }
+    let h = normalize(wi + wo);
+    let c = dot(wo, h);
+    if c > 0.0 {
+        return mf_pdf_visible(lobe.mf, wo, h) / (4.0 * c);
+    }
+    return 0.0;
+}
+
+// sample::mixture_pdf: the mixture's pdf of wi for wo; 0 below the horizon.
+fn mixture_pdf(wi: vec3<f32>, wo: vec3<f32>) -> f32 {
+    let total = total_weight();
+    if wi.z <= 0.0 || wo.z <= 0.0 || total <= 0.0 {
+        return 0.0;
+    }
+    var p = 0.0;
+    for (var k = 0u; k < lobe_count; k++) {
+        p += lobes[k].weight / total * lobe_pdf(lobes[k], wi, wo);
+    }
+    return p;
+}
+
+// sample::sample_mixture: (wi, pdf) from three uniform numbers; pdf 0 when nothing can be sampled or wi is lost
+// below the horizon.
+fn sample_mixture(wo: vec3<f32>, u: vec3<f32>) -> vec4<f32> {
+    let total = total_weight();
+    if lobe_count == 0u || total <= 0.0 || wo.z <= 0.0 {
+        return vec4<f32>(0.0, 0.0, 1.0, 0.0);
+    }
+    let u0 = clamp(u.x, 0.0, 1.0) * total;
+    var chosen = lobe_count - 1u;
+    var acc = 0.0;
+    for (var k = 0u; k < lobe_count; k++) {
+        acc += lobes[k].weight;
+        if u0 < acc {
+            chosen = k;
+            break;
+        }
+    }
+    var wi: vec3<f32>;
+    if lobes[chosen].kind == COSINE {
+        wi = cosine_hemisphere(u.y, u.z);
+    } else {
+        wi = reflect_about(wo, mf_sample_visible(lobes[chosen].mf, wo, u.y, u.z));
+    }
+    if !(wi.z > 0.0) {
+        return vec4<f32>(wi, 0.0);
+    }
+    return vec4<f32>(wi, mixture_pdf(wi, wo));
+}
