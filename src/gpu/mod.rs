@@ -5,9 +5,8 @@
 //!
 //! Models on the GPU: `microfacet`, `steinberg`, `weidlich_wilkie` and `albedo_scaling` (every option; the last
 //! three read shaders/layers.wgsl's layers, the single-pass models walk them in shaders/single_pass.wgsl) and
-//! `belcour` (tabulated, every other option). Per-element inputs (car-paint
-//! flakes, the patina mask) run on the CPU only. A model's
-//! tables are uploaded once per stack and options and kept (`uploaded`). Inputs of any length are split into
+//! `belcour` (tabulated, every other option). Per-element inputs (car-paint flakes, the patina mask) run on the CPU
+//! only. A model's tables are uploaded once per stack and options and kept (`uploaded`). Inputs of any length are split into
 //! dispatches of at most CHUNK pairs. The renderer (`render`, shaders/scene.wgsl and render.wgsl) renders stacks,
 //! and Oat 2006's gooey layers (`oat`, shaders/oat.wgsl), on the sphere, the plane and meshes (shaders/mesh.wgsl,
 //! rasterized by raster.wgsl) under directional and point lights; stacks also under an environment (env.wgsl, with
