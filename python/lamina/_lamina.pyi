@@ -18,6 +18,8 @@ __all__ = [
     "check_stack",
     "eval",
     "eval_gpu",
+    "sample_gpu",
+    "pdf_gpu",
     "fresnel_conductor",
     "fresnel_dielectric",
     "fresnel_diffuse_reflectance",
@@ -201,6 +203,12 @@ def write_exr(path: str, image: _Array) -> None: ...
 def gpu_adapter() -> dict[str, str]: ...
 def gpu_models() -> list[str]: ...
 def eval_gpu(
+    layers: list[dict], ext_ior: float, model: str, wi: _Array, wo: _Array, options: dict | None = None
+) -> _Array: ...
+def sample_gpu(
+    layers: list[dict], ext_ior: float, model: str, wo: _Array, u: _Array, options: dict | None = None
+) -> _Array: ...
+def pdf_gpu(
     layers: list[dict], ext_ior: float, model: str, wi: _Array, wo: _Array, options: dict | None = None
 ) -> _Array: ...
 def gpu_resident_seconds(

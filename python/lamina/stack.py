@@ -123,24 +123,18 @@ class Stack:
         if tolerance is not None:
             raise TypeError(f"tolerance applies to model='auto' only, got model={model!r}")
         m, options, inputs = self._split(model, kwargs)
-        on_gpu = _gpu.use_gpu(device, m.name)
+        on_gpu = self._on_gpu(device, m.name, inputs)
         if m.name == "reference":
-            if on_gpu:
-                raise ValueError(
-                    f"model 'reference' has no GPU implementation yet (GPU models: {_gpu.models()}); use device='cpu'"
-                )
             return self.reference(wi, wo, wavelengths=wavelengths, samples=samples, seed=seed, **options)[0]
         wl = _wavelengths(wavelengths)
         if on_gpu:
-            if inputs:
-                raise ValueError(f"device={device!r}: per-element inputs run on the CPU only; use device='cpu'")
             wi, wo = broadcast(wi=(wi, 3), wo=(wo, 3))
             return _lamina.eval_gpu(self._resolve(wl), self.ext_ior, m.name, wi, wo, options)
         arrays = broadcast(wi=(wi, 3), wo=(wo, 3), **inputs)
         named = dict(zip(inputs, arrays[2:]))
         return _lamina.eval(self._resolve(wl), self.ext_ior, m.name, arrays[0], arrays[1], options, named)
 
-    def sample(self, wo, u, model: str = "microfacet", *, wavelengths=None, **kwargs):
+    def sample(self, wo, u, model: str = "microfacet", *, wavelengths=None, device: str = "cpu", **kwargs):
         """Importance-samples the light direction for viewing directions wo (..., 3) from uniform numbers u (..., 3)
         in [0, 1] (broadcast): returns (wi (..., 3), weight (..., channels), pdf (...)) with weight = f(wi, wo)
         cos θi / pdf and pdf per unit solid angle — what a path tracer calls (Mitsuba's si.wi is lamina's wo).
@@ -150,9 +144,14 @@ class Stack:
         that leaves the hemisphere, or a wo with nothing to sample, has weight 0 and pdf 0. model="reference" traces
         one random walk per element (seeded by u, in the channel u[0] picks; weight = its throughput times the
         number of channels in that channel, 0 in the others) and reports pdf 0: a walk's density has no closed
-        form; its samples include the Dirac paths."""
+        form; its samples include the Dirac paths. device: as for `eval` (the GPU's float32 samples follow the same
+        mixture from the same u)."""
         m, options, inputs = self._split(model, kwargs)
         wl = _wavelengths(wavelengths)
+        if self._on_gpu(device, m.name, inputs):
+            wo, u = broadcast(wo=(wo, 3), u=(u, 3))
+            out = _lamina.sample_gpu(self._resolve(wl), self.ext_ior, m.name, wo, u, options)
+            return out[..., :3], out[..., 3:-1], out[..., -1]
         wo, u, *rest = broadcast(wo=(wo, 3), u=(u, 3), **inputs)
         if m.name == "reference":
             out = _lamina.reference_sample(self._resolve(wl), self.ext_ior, wo, u, **options)
@@ -160,8 +159,9 @@ class Stack:
             out = _lamina.sample(self._resolve(wl), self.ext_ior, m.name, wo, u, options, dict(zip(inputs, rest)))
         return out[..., :3], out[..., 3:-1], out[..., -1]
 
-    def pdf(self, wi, wo, model: str = "microfacet", *, wavelengths=None, **options) -> np.ndarray:
-        """The pdf (per unit solid angle) with which `sample` draws wi for the viewing direction wo; (...)."""
+    def pdf(self, wi, wo, model: str = "microfacet", *, wavelengths=None, device: str = "cpu", **options) -> np.ndarray:
+        """The pdf (per unit solid angle) with which `sample` draws wi for the viewing direction wo; (...). device:
+        as for `eval`."""
         m, options, inputs = self._split(model, options)
         if m.name == "reference":
             raise ValueError("model 'reference' has no closed-form pdf: its samples come from random walks")
@@ -170,7 +170,21 @@ class Stack:
                 f"pdf takes no per-element inputs (the sampling mixture does not depend on them), got {list(inputs)}"
             )
         wi, wo = broadcast(wi=(wi, 3), wo=(wo, 3))
-        return _lamina.pdf(self._resolve(_wavelengths(wavelengths)), self.ext_ior, m.name, wi, wo, options)[..., 0]
+        run = _lamina.pdf_gpu if self._on_gpu(device, m.name, {}) else _lamina.pdf
+        return run(self._resolve(_wavelengths(wavelengths)), self.ext_ior, m.name, wi, wo, options)[..., 0]
+
+    @staticmethod
+    def _on_gpu(device: str, model: str, inputs: dict) -> bool:
+        """Whether `device` means the GPU for `model` (gpu.use_gpu), which takes no per-element inputs."""
+        if not _gpu.use_gpu(device, model):
+            return False
+        if inputs:
+            raise ValueError(f"device={device!r}: per-element inputs run on the CPU only; use device='cpu'")
+        if model == "reference":
+            raise ValueError(
+                f"model 'reference' has no GPU implementation yet (GPU models: {_gpu.models()}); use device='cpu'"
+            )
+        return True
 
     def specular(self, wo, model: str = "microfacet", *, wavelengths=None, **options) -> np.ndarray:
         """The Dirac (mirror) reflection for viewing directions wo (..., 3): the fraction of light from the mirror

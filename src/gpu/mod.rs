@@ -85,17 +85,45 @@ pub fn compose_render(model: &str) -> Option<String> {
     compose(model).map(|m| format!("{m}\n{SCENE}\n{MESH}\n{RENDER}\n{ENV}"))
 }
 
+/// What a per-element dispatch of a model computes: f(wi, wo) (`main`), a sample for (wo, u) (`sample_main` in
+/// sample.wgsl) or the pdf of (wi, wo) (`pdf_main`).
+#[derive(Clone, Copy)]
+pub enum Query {
+    Eval,
+    Sample,
+    Pdf,
+}
+
+impl Query {
+    fn entry(self) -> &'static str {
+        match self {
+            Query::Eval => "main",
+            Query::Sample => "sample_main",
+            Query::Pdf => "pdf_main",
+        }
+    }
+
+    /// Values written per element: f per channel; wi, the weight per channel and the pdf; the pdf.
+    pub fn width(self, channels: usize) -> usize {
+        match self {
+            Query::Eval => channels,
+            Query::Sample => channels + 4,
+            Query::Pdf => 1,
+        }
+    }
+}
+
 /// The render kernels: for the sphere or plane and for a mesh, deterministic, then under an environment.
 const RENDER_KERNELS: [&str; 4] = ["render", "render_mesh", "render_env", "render_mesh_env"];
 
-/// The adapter, its device, per model (in the order of MODELS) its eval pipeline and its render pipelines
-/// (RENDER_KERNELS), each compiled on first use (drivers take seconds per kernel), Oat's kernels (in the order of oat::KERNELS) and the mesh's rasterization in uv
+/// The adapter, its device, per model (in the order of MODELS) its per-element pipelines (Query) and its render
+/// pipelines (RENDER_KERNELS), each compiled on first use (drivers take seconds per kernel), Oat's kernels (in the order of oat::KERNELS) and the mesh's rasterization in uv
 /// space and through the camera.
 pub struct Gpu {
     pub info: wgpu::AdapterInfo,
     device: wgpu::Device,
     queue: wgpu::Queue,
-    pipelines: Vec<OnceLock<wgpu::ComputePipeline>>,
+    pipelines: Vec<[OnceLock<wgpu::ComputePipeline>; 3]>,
     renderers: Vec<[OnceLock<wgpu::ComputePipeline>; 4]>,
     oat: [wgpu::ComputePipeline; 6],
     raster: [wgpu::RenderPipeline; 2],
@@ -182,7 +210,7 @@ async fn create() -> std::result::Result<Gpu, String> {
         .map_err(|e| format!("the GPU adapter refused a device: {e}"))?;
     let oat_module = compute_module(&device, "oat", oat::compose());
     let oat = oat::KERNELS.map(|entry| compute_pipeline(&device, &oat_module, entry));
-    let pipelines = MODELS.iter().map(|_| OnceLock::new()).collect();
+    let pipelines = MODELS.iter().map(|_| std::array::from_fn(|_| OnceLock::new())).collect();
     let renderers = MODELS.iter().map(|_| std::array::from_fn(|_| OnceLock::new())).collect();
     let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
         label: Some("raster"),
@@ -200,9 +228,19 @@ fn compute_module(device: &wgpu::Device, name: &str, source: String) -> wgpu::Sh
 }
 
 fn compute_pipeline(device: &wgpu::Device, module: &wgpu::ShaderModule, entry: &str) -> wgpu::ComputePipeline {
+    layout_pipeline(device, module, entry, None)
+}
+
+/// A pipeline with the given layout, or (None) the one its entry point's bindings imply.
+fn layout_pipeline(
+    device: &wgpu::Device,
+    module: &wgpu::ShaderModule,
+    entry: &str,
+    layout: Option<&wgpu::PipelineLayout>,
+) -> wgpu::ComputePipeline {
     device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
         label: Some(entry),
-        layout: None,
+        layout,
         module,
         entry_point: Some(entry),
         compilation_options: Default::default(),
@@ -211,11 +249,33 @@ fn compute_pipeline(device: &wgpu::Device, module: &wgpu::ShaderModule, entry: &
 }
 
 impl Gpu {
-    /// Model k's eval pipeline (MODELS order), compiled on first use.
-    fn eval_pipeline(&self, k: usize) -> &wgpu::ComputePipeline {
-        self.pipelines[k].get_or_init(|| {
+    /// Model k's (MODELS order) pipeline for `query`, compiled on first use, with one layout for all three queries
+    /// (what eval binds: the parameters, the model's `arrays` read-only arrays, the pairs and the output), so that one
+    /// bind group serves each though pdf reads fewer.
+    fn query_pipeline(&self, k: usize, query: Query, arrays: usize) -> &wgpu::ComputePipeline {
+        self.pipelines[k][query as usize].get_or_init(|| {
             let (name, _) = MODELS[k];
-            compute_pipeline(&self.device, &compute_module(&self.device, name, compose(name).expect("listed")), "main")
+            let entry = |binding: u32, ty: wgpu::BufferBindingType| wgpu::BindGroupLayoutEntry {
+                binding,
+                visibility: wgpu::ShaderStages::COMPUTE,
+                ty: wgpu::BindingType::Buffer { ty, has_dynamic_offset: false, min_binding_size: None },
+                count: None,
+            };
+            let read = wgpu::BufferBindingType::Storage { read_only: true };
+            let entries: Vec<wgpu::BindGroupLayoutEntry> = std::iter::once(entry(0, wgpu::BufferBindingType::Uniform))
+                .chain((1..=arrays as u32 + 1).map(|b| entry(b, read)))
+                .chain([entry(arrays as u32 + 2, wgpu::BufferBindingType::Storage { read_only: false })])
+                .collect();
+            let group = self
+                .device
+                .create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor { label: None, entries: &entries });
+            let layout = self.device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+                label: Some(query.entry()),
+                bind_group_layouts: &[Some(&group)],
+                immediate_size: 0,
+            });
+            let module = compute_module(&self.device, name, compose(name).expect("listed"));
+            layout_pipeline(&self.device, &module, query.entry(), Some(&layout))
         })
     }
 
@@ -264,6 +324,20 @@ fn dist_code(dist: Distribution) -> u32 {
 
 /// Lobes of a sampling mixture on the GPU (MAX_LOBES in shaders/sample.wgsl).
 const MAX_LOBES: usize = 16;
+
+/// Whether the GPU's sampling mixture holds every lobe a model proposes for `stack`: at most two per layer (a
+/// single-pass model's dielectric: its reflection and its slab's cosine term).
+fn fits_the_mixture(stack: &Stack) -> Result<()> {
+    if 2 * stack.layers.len() > MAX_LOBES {
+        return value_error(format!(
+            "sampling on the GPU (sample, pdf, environment lights) takes stacks of at most {} layers, got {}; use \
+             device='cpu'",
+            MAX_LOBES / 2,
+            stack.layers.len()
+        ));
+    }
+    Ok(())
+}
 
 /// The single-pass layers as single_pass.wgsl reads them, and the nodes per Fresnel table (0: none): per layer 9
 /// values (kind: 0 dielectric, 1 conductor, 2 diffuse; the microfacet's distribution, smooth flag, αx, αy, cos φ,
@@ -532,8 +606,9 @@ struct Batch {
     pairs: usize,
 }
 
-/// Uploads the pairs (float32 rows wi.xyz, wo.xyz) of one dispatch of `up`'s kernel.
-fn batch(gpu: &Gpu, up: &Uploaded, pipeline: &wgpu::ComputePipeline, pairs: &[f32]) -> Batch {
+/// Uploads the pairs (float32 rows of two vectors: wi and wo, or wo and u) of one dispatch of `up`'s kernel for
+/// `query`.
+fn batch(gpu: &Gpu, up: &Uploaded, pipeline: &wgpu::ComputePipeline, query: Query, pairs: &[f32]) -> Batch {
     let (device, kernel) = (&gpu.device, &up.kernel);
     let m = pairs.len() / 6;
     let mut words = kernel.words.clone();
@@ -545,7 +620,7 @@ fn batch(gpu: &Gpu, up: &Uploaded, pipeline: &wgpu::ComputePipeline, pairs: &[f3
     let pair_buf = init("pairs", bytemuck::cast_slice(pairs), wgpu::BufferUsages::STORAGE);
     let out = device.create_buffer(&wgpu::BufferDescriptor {
         label: Some("f"),
-        size: (4 * m * kernel.channels) as u64,
+        size: (4 * m * query.width(kernel.channels)) as u64,
         usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
         mapped_at_creation: false,
     });
@@ -598,31 +673,37 @@ fn prepared(
     model: &str,
     stack: &Stack,
     opts: &Options,
+    query: Query,
     pairs: &[f32],
 ) -> Result<(&'static Gpu, Arc<Uploaded>, &'static wgpu::ComputePipeline, usize)> {
     if !pairs.len().is_multiple_of(6) {
-        return value_error("pairs must be float32 (n, 6) rows of wi and wo");
+        return value_error("pairs must be float32 (n, 6) rows of two vectors");
     }
     let gpu = gpu()?;
     let up = upload(gpu, model, stack, opts)?;
-    let pipeline = gpu.eval_pipeline(MODELS.iter().position(|m| m.0 == up.kernel.model).expect("a listed model"));
+    let k = MODELS.iter().position(|m| m.0 == up.kernel.model).expect("a listed model");
     let limit = gpu.device.limits().max_storage_buffer_binding_size as usize;
-    let chunk = CHUNK.min((limit / (4 * up.kernel.channels.max(6))).max(64));
+    let chunk = CHUNK.min((limit / (4 * query.width(up.kernel.channels).max(6))).max(64));
+    let pipeline = gpu.query_pipeline(k, query, up.arrays.len());
     Ok((gpu, up, pipeline, chunk))
 }
 
-/// f of `model` for n pairs given as float32 rows (wi.xyz, wo.xyz), unit directions: n·channels float32 values.
-pub fn eval(model: &str, stack: &Stack, opts: &Options, pairs: &[f32]) -> Result<Vec<f32>> {
+/// `query` of `model` for n elements given as float32 rows of two unit vectors, (wi, wo) or for Sample (wo, u):
+/// n·query.width(channels) float32 values.
+pub fn run(query: Query, model: &str, stack: &Stack, opts: &Options, pairs: &[f32]) -> Result<Vec<f32>> {
     let gpu = gpu()?;
-    scoped(gpu, || eval_scoped(model, stack, opts, pairs))
+    scoped(gpu, || run_scoped(query, model, stack, opts, pairs))
 }
 
-fn eval_scoped(model: &str, stack: &Stack, opts: &Options, pairs: &[f32]) -> Result<Vec<f32>> {
-    let (gpu, up, pipeline, chunk) = prepared(model, stack, opts, pairs)?;
-    let c = up.kernel.channels;
+fn run_scoped(query: Query, model: &str, stack: &Stack, opts: &Options, pairs: &[f32]) -> Result<Vec<f32>> {
+    if !matches!(query, Query::Eval) {
+        fits_the_mixture(stack)?;
+    }
+    let (gpu, up, pipeline, chunk) = prepared(model, stack, opts, query, pairs)?;
+    let c = query.width(up.kernel.channels);
     let mut out = vec![0f32; pairs.len() / 6 * c];
     for (rows, dst) in pairs.chunks(6 * chunk).zip(out.chunks_mut(chunk * c)) {
-        let b = batch(gpu, &up, pipeline, rows);
+        let b = batch(gpu, &up, pipeline, query, rows);
         let read = gpu.device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("readback"),
             size: b.out.size(),
@@ -643,8 +724,9 @@ fn eval_scoped(model: &str, stack: &Stack, opts: &Options, pairs: &[f32]) -> Res
 /// read back): the mean over `repeats` rounds after a warm-up round. For benchmarks.
 pub fn resident_seconds(model: &str, stack: &Stack, opts: &Options, pairs: &[f32], repeats: usize) -> Result<f64> {
     scoped(gpu()?, || {
-        let (gpu, up, pipeline, chunk) = prepared(model, stack, opts, pairs)?;
-        let batches: Vec<Batch> = pairs.chunks(6 * chunk).map(|rows| batch(gpu, &up, pipeline, rows)).collect();
+        let (gpu, up, pipeline, chunk) = prepared(model, stack, opts, Query::Eval, pairs)?;
+        let batches: Vec<Batch> =
+            pairs.chunks(6 * chunk).map(|rows| batch(gpu, &up, pipeline, Query::Eval, rows)).collect();
         batches.iter().for_each(|b| dispatch_batch(gpu, pipeline, b, None));
         wait(gpu)?;
         let start = std::time::Instant::now();
@@ -830,14 +912,7 @@ fn render_scoped(gpu: &'static Gpu, model: &str, stacks: &[Stack], opts: &Option
     let Some(k) = MODELS.iter().position(|m| m.0 == model) else { return Err(unsupported(model)) };
     let pipeline = gpu.render_pipeline(k, scene.mesh.is_some() as usize + 2 * scene.env.is_some() as usize);
     if scene.env.is_some() {
-        if let Some(s) = stacks.iter().find(|s| s.layers.len() >= MAX_LOBES) {
-            return value_error(format!(
-                "an environment light on the GPU takes stacks of at most {} layers (the sampling mixture holds \
-                 {MAX_LOBES} lobes), got {}; use device='cpu'",
-                MAX_LOBES - 1,
-                s.layers.len()
-            ));
-        }
+        stacks.iter().try_for_each(fits_the_mixture)?;
     }
     let env = scene.env.as_ref().map(|(words, rgb, dists)| {
         let storage = wgpu::BufferUsages::STORAGE;

@@ -30,11 +30,10 @@ pub fn gpu_models() -> Vec<&'static str> {
     gpu::MODELS.iter().map(|(name, _)| *name).collect()
 }
 
-/// The checked, normalised pairs of (already broadcast) directions as float32 rows (wi.xyz, wo.xyz), and the batch
+/// Two checked (already broadcast) arrays of 3-vectors (directions normalised) as float32 rows of 6, and the batch
 /// shape.
-fn pairs<'py>(py: Python<'py>, wi: &Bound<'py, PyAny>, wo: &Bound<'py, PyAny>) -> PyResult<(Vec<f32>, Vec<usize>)> {
-    let dirs = [("wi", wi, Kind::Direction), ("wo", wo, Kind::Direction)];
-    let pairs = batch(py, &dirs, 6, |r, o| {
+fn pairs<'py>(py: Python<'py>, arrays: [(&str, &Bound<'py, PyAny>, Kind); 2]) -> PyResult<(Vec<f32>, Vec<usize>)> {
+    let pairs = batch(py, &arrays, 6, |r, o| {
         o[..3].copy_from_slice(&r[0]);
         o[3..].copy_from_slice(&r[1]);
     })?;
@@ -61,7 +60,7 @@ pub fn gpu_resident_seconds<'py>(
 ) -> PyResult<f64> {
     let stack = parse_stack(layers, ext_ior)?;
     let (opts, _) = parse_options(model, options)?;
-    let (flat, _) = pairs(py, wi, wo)?;
+    let (flat, _) = pairs(py, [("wi", wi, Kind::Direction), ("wo", wo, Kind::Direction)])?;
     Ok(py.detach(|| gpu::resident_seconds(model, &stack, &opts, &flat, repeats))?)
 }
 
@@ -77,15 +76,82 @@ pub fn eval_gpu<'py>(
     wo: &Bound<'py, PyAny>,
     options: Option<&Bound<'py, PyDict>>,
 ) -> PyResult<Bound<'py, PyAny>> {
+    query(
+        py,
+        gpu::Query::Eval,
+        layers,
+        ext_ior,
+        model,
+        [("wi", wi, Kind::Direction), ("wo", wo, Kind::Direction)],
+        options,
+    )
+}
+
+/// Stack.sample on the GPU: (..., 3 + channels + 1) float32 rows (wi, weight, pdf) for (already broadcast) wo and u.
+#[pyfunction]
+#[pyo3(signature = (layers, ext_ior, model, wo, u, options=None))]
+pub fn sample_gpu<'py>(
+    py: Python<'py>,
+    layers: &Bound<'py, PyList>,
+    ext_ior: f64,
+    model: &str,
+    wo: &Bound<'py, PyAny>,
+    u: &Bound<'py, PyAny>,
+    options: Option<&Bound<'py, PyDict>>,
+) -> PyResult<Bound<'py, PyAny>> {
+    query(
+        py,
+        gpu::Query::Sample,
+        layers,
+        ext_ior,
+        model,
+        [("wo", wo, Kind::Direction), ("u", u, Kind::Range(3, 0.0, 1.0))],
+        options,
+    )
+}
+
+/// Stack.pdf on the GPU: (..., 1) float32 for (already broadcast) wi and wo.
+#[pyfunction]
+#[pyo3(signature = (layers, ext_ior, model, wi, wo, options=None))]
+pub fn pdf_gpu<'py>(
+    py: Python<'py>,
+    layers: &Bound<'py, PyList>,
+    ext_ior: f64,
+    model: &str,
+    wi: &Bound<'py, PyAny>,
+    wo: &Bound<'py, PyAny>,
+    options: Option<&Bound<'py, PyDict>>,
+) -> PyResult<Bound<'py, PyAny>> {
+    query(
+        py,
+        gpu::Query::Pdf,
+        layers,
+        ext_ior,
+        model,
+        [("wi", wi, Kind::Direction), ("wo", wo, Kind::Direction)],
+        options,
+    )
+}
+
+/// A per-element query of `model` on the GPU for two checked arrays: (..., query.width(channels)) float32.
+fn query<'py>(
+    py: Python<'py>,
+    query: gpu::Query,
+    layers: &Bound<'py, PyList>,
+    ext_ior: f64,
+    model: &str,
+    arrays: [(&str, &Bound<'py, PyAny>, Kind); 2],
+    options: Option<&Bound<'py, PyDict>>,
+) -> PyResult<Bound<'py, PyAny>> {
     let stack = parse_stack(layers, ext_ior)?;
     let (opts, _) = parse_options(model, options)?;
     if !gpu::supports(model) {
         gpu::kernel(model, &stack, &opts)?; // the error naming the GPU models
     }
-    let (flat, mut shape) = pairs(py, wi, wo)?;
-    let f = py.detach(|| gpu::eval(model, &stack, &opts, &flat))?;
-    shape.push(stack.channels);
-    numpy::PyArray1::from_vec(py, f).reshape(shape).map(|a| a.into_any())
+    let (flat, mut shape) = pairs(py, arrays)?;
+    let values = py.detach(|| gpu::run(query, model, &stack, &opts, &flat))?;
+    shape.push(query.width(stack.channels));
+    numpy::PyArray1::from_vec(py, values).reshape(shape).map(|a| a.into_any())
 }
 
 /// Renders stacks on the GPU: (stacks, height, width, 3) float32. `stacks` is a list of (layers, ext_ior); `shape`

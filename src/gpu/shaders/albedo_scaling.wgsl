@@ -93,14 +93,16 @@ fn proposals(wo: vec3<f32>) {
     let share = 1.0 / f32(params.channels);
     for (var ch = 0u; ch < params.channels; ch++) {
         var weight = 1.0;
+        var slot = 0u;
         for (var l = 0u; l < params.layers; l++) {
             let layer = sp_layer(l);
             if layer.kind != DIELECTRIC && layer.kind != CONDUCTOR {
-                add_lobe(COSINE, share * weight * value(layer, ch, ALBEDO), cosine_lobe());
+                add_term(slot, COSINE, share * weight * value(layer, ch, ALBEDO), cosine_lobe());
                 break;
             }
             if layer.mf.smooth_ == 0u {
-                add_lobe(REFLECTION, share * weight * albedo(layer, wo.z, ch), layer.mf);
+                add_term(slot, REFLECTION, share * weight * albedo(layer, wo.z, ch), layer.mf);
+                slot += 1u;
             }
             if layer.kind == CONDUCTOR {
                 break;

@@ -169,7 +169,7 @@ fn proposals(wo: vec3<f32>) {
             for (var ch = 0u; ch < params.channels; ch++) {
                 energy += interpolate(c, lobe.energy + ch);
             }
-            add_lobe(REFLECTION, energy / f32(params.channels), lobe.mf);
+            add_term(lobe_count, REFLECTION, energy / f32(params.channels), lobe.mf);
         }
     }
     if params.has_diffuse != 0u {
@@ -179,8 +179,9 @@ fn proposals(wo: vec3<f32>) {
             let t = transmitted(c, false, ch);
             energy += d.x * t * t / (1.0 - d.x * d.y);
         }
-        add_lobe(COSINE, energy / f32(params.channels), cosine_lobe());
+        add_term(lobe_count, COSINE, energy / f32(params.channels), cosine_lobe());
     }
+    keep_terms_with_energy();
 }
 
 // Prepared::specular: the energies of the smooth lobes at wo, channel ch.

@@ -31,10 +31,10 @@ fn proposals(wo: vec3<f32>) {
     clear_mixture();
     if params.kind == 0u {
         if params.mf.smooth_ == 0u {
-            add_lobe(REFLECTION, 1.0, params.mf);
+            add_term(0u, REFLECTION, 1.0, params.mf);
         }
     } else {
-        add_lobe(COSINE, 1.0, cosine_lobe());
+        add_term(0u, COSINE, 1.0, cosine_lobe());
     }
 }
 

@@ -14,9 +14,9 @@ struct Lobe {
     mf: Microfacet,
 }
 
-// The proposals for the current viewing direction with their (unnormalised) weights, in private memory (a kernel
-// builds one mixture at a time, and copying it by value costs the shader compilers dearly). The cosine terms are
-// gathered into one lobe: the same mixture.
+// The proposals for the current viewing direction with their (unnormalised) weights, in the order of the CPU's
+// (so that the same u picks the same lobe), in private memory (a kernel builds one mixture at a time, and copying it
+// by value costs the shader compilers dearly).
 var<private> lobes: array<Lobe, MAX_LOBES>;
 var<private> lobe_count: u32;
 
@@ -24,23 +24,29 @@ fn clear_mixture() {
     lobe_count = 0u;
 }
 
-// Adds a lobe of energy `weight` (nothing for none, or past MAX_LOBES: the host keeps stacks within it).
-fn add_lobe(kind: u32, weight: f32, mf: Microfacet) {
-    if weight <= 0.0 {
+// Adds `weight` to the term in `slot` (a model's terms have fixed slots; a model whose energies add up over channels
+// adds each channel's share to the same slots), creating it if new. The host keeps stacks within MAX_LOBES.
+fn add_term(slot: u32, kind: u32, weight: f32, mf: Microfacet) {
+    if slot >= MAX_LOBES {
         return;
     }
-    if kind == COSINE {
-        for (var k = 0u; k < lobe_count; k++) {
-            if lobes[k].kind == COSINE {
-                lobes[k].weight += weight;
-                return;
-            }
+    if slot >= lobe_count {
+        lobes[slot] = Lobe(kind, 0.0, mf);
+        lobe_count = slot + 1u;
+    }
+    lobes[slot].weight += weight;
+}
+
+// Keeps the terms with energy, in order (sample::defensive_mixture's filter).
+fn keep_terms_with_energy() {
+    var kept = 0u;
+    for (var k = 0u; k < lobe_count; k++) {
+        if lobes[k].weight > 0.0 {
+            lobes[kept] = lobes[k];
+            kept += 1u;
         }
     }
-    if lobe_count < MAX_LOBES {
-        lobes[lobe_count] = Lobe(kind, weight, mf);
-        lobe_count += 1u;
-    }
+    lobe_count = kept;
 }
 
 fn cosine_lobe() -> Microfacet {
@@ -55,11 +61,12 @@ fn total_weight() -> f32 {
     return total;
 }
 
-// sample::defensive_mixture: the terms plus the DEFENSIVE cosine share (none when nothing has energy).
+// sample::defensive_mixture: the terms with energy, then the DEFENSIVE cosine share (none when nothing has energy).
 fn add_defensive_share() {
+    keep_terms_with_energy();
     let total = total_weight();
     if total > 0.0 {
-        add_lobe(COSINE, DEFENSIVE * total / (1.0 - DEFENSIVE), cosine_lobe());
+        add_term(lobe_count, COSINE, DEFENSIVE * total / (1.0 - DEFENSIVE), cosine_lobe());
     }
 }
 
@@ -116,4 +123,48 @@ fn sample_mixture(wo: vec3<f32>, u: vec3<f32>) -> vec4<f32> {
         return vec4<f32>(wi, 0.0);
     }
     return vec4<f32>(wi, mixture_pdf(wi, wo));
+}
+
+// Stack.sample on the GPU (sample::sample with the model's f): per element (wo, u) the row (wi, weight = f cos θi /
+// pdf per channel, pdf); wi = +z, weight 0 and pdf 0 where nothing is sampled.
+@compute @workgroup_size(64)
+fn sample_main(@builtin(global_invocation_id) gid: vec3<u32>) {
+    let i = gid.x;
+    if i >= params.n {
+        return;
+    }
+    let wo = load(i, 0u);
+    let base = i * (params.channels + 4u);
+    var s = vec4<f32>(0.0, 0.0, 1.0, 0.0);
+    if wo.z > 0.0 {
+        proposals(wo);
+        s = sample_mixture(wo, load(i, 1u));
+    }
+    if s.w > 0.0 {
+        eval_pair(s.xyz, wo, base + 3u);
+    }
+    for (var ch = 0u; ch < params.channels; ch++) {
+        out[base + 3u + ch] = select(0.0, out[base + 3u + ch] * s.z / s.w, s.w > 0.0);
+    }
+    out[base] = s.x;
+    out[base + 1u] = s.y;
+    out[base + 2u] = s.z;
+    out[base + 3u + params.channels] = s.w;
+}
+
+// Stack.pdf on the GPU (sample::pdf): the mixture's density of wi for wo per element; 0 for wo below the horizon.
+@compute @workgroup_size(64)
+fn pdf_main(@builtin(global_invocation_id) gid: vec3<u32>) {
+    let i = gid.x;
+    if i >= params.n {
+        return;
+    }
+    let wi = load(i, 0u);
+    let wo = load(i, 1u);
+    var p = 0.0;
+    if wo.z > 0.0 {
+        proposals(wo);
+        p = mixture_pdf(wi, wo);
+    }
+    out[i] = p;
 }

@@ -73,12 +73,14 @@ fn proposals(wo: vec3<f32>) {
     for (var ch = 0u; ch < params.channels; ch++) {
         var weight = 1.0;
         var cos = wo.z;
+        var slot = 0u;
         for (var l = 0u; l < params.layers; l++) {
             let layer = sp_layer(l);
             if layer.kind == DIELECTRIC {
                 let f = interface_fresnel(layer, cos, ch);
                 if layer.mf.smooth_ == 0u {
-                    add_lobe(REFLECTION, share * weight * f, layer.mf);
+                    add_term(slot, REFLECTION, share * weight * f, layer.mf);
+                    slot += 1u;
                 }
                 let sin_t = sqrt(max(1.0 - cos * cos, 0.0)) / mean_eta(layer);
                 if sin_t >= 1.0 {
@@ -87,14 +89,15 @@ fn proposals(wo: vec3<f32>) {
                 cos = sqrt(1.0 - sin_t * sin_t);
                 let k = exp(-2.0 * value(layer, ch, SIGMA_T) * layer.thickness / max(cos, 1e-9));
                 let t = weight * (1.0 - f) * (1.0 - f);
-                add_lobe(COSINE, share * t * (1.0 - k) * value(layer, ch, ALBEDO), cosine_lobe());
+                add_term(slot, COSINE, share * t * (1.0 - k) * value(layer, ch, ALBEDO), cosine_lobe());
+                slot += 1u;
                 weight = t * k;
             } else if layer.kind == CONDUCTOR {
                 if layer.mf.smooth_ == 0u {
-                    add_lobe(REFLECTION, share * weight * interface_fresnel(layer, cos, ch), layer.mf);
+                    add_term(slot, REFLECTION, share * weight * interface_fresnel(layer, cos, ch), layer.mf);
                 }
             } else {
-                add_lobe(COSINE, share * weight * value(layer, ch, ALBEDO) * value(layer, ch, GAIN), cosine_lobe());
+                add_term(slot, COSINE, share * weight * value(layer, ch, ALBEDO) * value(layer, ch, GAIN), cosine_lobe());
             }
         }
     }
