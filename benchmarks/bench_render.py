@@ -2,7 +2,7 @@
 per second under the built-in sky, for each model; beside Mitsuba 3 `llvm_ad_rgb` rendering the same ball (a unit
 sphere, orthographic camera, 256², one sample per pixel) with its `roughconductor` under a directional light, and
 with an `envmap` of the same sky map through its `path` integrator (max depth 2), in the same run. lamina's CPU
-renderer, and its GPU path (directional lights) on whatever adapter wgpu finds. Writes the "render" section of
+renderer, and its GPU path (both lights) on whatever adapter wgpu finds. Writes the "render" section of
 docs/benchmarks.md. Not a test: nothing is asserted.
 Run: make bench"""
 
@@ -92,8 +92,12 @@ def main() -> None:
     for label, name, model in CASES:
         if adapter is not None and model in lamina.gpu.models():
             s = stack(name)
-            fns[f"lamina {model} on the GPU ({adapter['name']}): {label}, directional"] = lambda s=s, m=model: R.render(
+            key = f"lamina {model} on the GPU ({adapter['name']}): {label}"
+            fns[key + ", directional"] = lambda s=s, m=model: R.render(
                 s, m, width=SIZE, height=SIZE, lights=[LIGHT], device="gpu"
+            )
+            fns[key + f", sky {ENV_SPP} spp"] = lambda s=s, m=model: R.render(
+                s, m, width=SIZE, height=SIZE, lights=[sky], spp=ENV_SPP, device="gpu"
             )
     directional, envlit = mitsuba_scene(None), mitsuba_scene(sky.map)
     fns["Mitsuba 3 llvm_ad_rgb roughconductor, directional"] = lambda: np.array(mi.render(directional, seed=0))
@@ -112,8 +116,8 @@ def main() -> None:
         "reference: one walk per channel). Mitsuba 3 renders the same ball with `roughconductor` (one lobe) through "
         "`direct` (directional, 1 spp) or `path` with max depth 2 (its `envmap` of the same sky map, "
         f"{ENV_SPP} spp), `np.array(mi.render(scene))` as its users call it. Median of the round-robin runs after a "
-        "cold call (Mitsuba's includes compiling its kernels). GPU rows: `device='gpu'` (directional and point "
-        "lights only) on the adapter named, including the upload of the tables and the read-back of the image.",
+        "cold call (Mitsuba's includes compiling its kernels). GPU rows: `device='gpu'` on the adapter named, "
+        "including the upload of the tables and the read-back of the image.",
         "",
         "| renderer | light | median (s) | balls/s | samples/s | ratio to Mitsuba (same light) |",
         "|---|---|---:|---:|---:|---:|",
