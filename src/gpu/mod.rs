@@ -34,6 +34,8 @@ pub const RENDER: &str = include_str!("shaders/render.wgsl");
 pub const ENV: &str = include_str!("shaders/env.wgsl");
 /// Importance sampling (the models' mixtures), composed after OPTICS.
 pub const SAMPLE: &str = include_str!("shaders/sample.wgsl");
+/// The per-element kernels (eval, sample, pdf), composed after each model.
+pub const QUERIES: &str = include_str!("shaders/queries.wgsl");
 /// Triangle meshes, composed after SCENE.
 pub const MESH: &str = include_str!("shaders/mesh.wgsl");
 /// The mesh's rasterization into visibility targets, composed after MESH.
@@ -61,9 +63,9 @@ pub const MODELS: &[(&str, &str)] = &[
     ("albedo_scaling", concat!(include_str!("shaders/layers.wgsl"), include_str!("shaders/albedo_scaling.wgsl"))),
 ];
 
-/// A model's complete shader source: the primitives and sampling, then the model.
+/// A model's complete shader source: the primitives and sampling, the model, and its per-element kernels.
 pub fn compose(model: &str) -> Option<String> {
-    MODELS.iter().find(|(name, _)| *name == model).map(|(_, src)| format!("{OPTICS}\n{SAMPLE}\n{src}"))
+    MODELS.iter().find(|(name, _)| *name == model).map(|(_, src)| format!("{OPTICS}\n{SAMPLE}\n{src}\n{QUERIES}"))
 }
 
 /// Whether a model has a GPU implementation.
@@ -85,8 +87,8 @@ pub fn compose_render(model: &str) -> Option<String> {
     compose(model).map(|m| format!("{m}\n{SCENE}\n{MESH}\n{RENDER}\n{ENV}"))
 }
 
-/// What a per-element dispatch of a model computes: f(wi, wo) (`main`), a sample for (wo, u) (`sample_main` in
-/// sample.wgsl) or the pdf of (wi, wo) (`pdf_main`).
+/// What a per-element dispatch of a model computes (shaders/queries.wgsl): f(wi, wo) (`main`), a sample for (wo, u)
+/// (`sample_main`) or the pdf of (wi, wo) (`pdf_main`).
 #[derive(Clone, Copy)]
 pub enum Query {
     Eval,

@@ -53,12 +53,6 @@ fn specular(wo: vec3<f32>, ch: u32) -> f32 {
     return 0.0;
 }
 
-// Direction `which` (0: wi, 1: wo) of pair i.
-fn load(i: u32, which: u32) -> vec3<f32> {
-    let k = 6u * i + 3u * which;
-    return vec3<f32>(pairs[k], pairs[k + 1u], pairs[k + 2u]);
-}
-
 // f(wi, wo) of every channel into out[base..]: the model's one evaluation, shared by the eval and render kernels.
 fn eval_pair(wi: vec3<f32>, wo: vec3<f32>, base: u32) {
     let above = wi.z > 0.0 && wo.z > 0.0;
@@ -75,13 +69,5 @@ fn eval_pair(wi: vec3<f32>, wo: vec3<f32>, base: u32) {
             }
         }
         out[base + c] = f;
-    }
-}
-
-@compute @workgroup_size(64)
-fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
-    let i = gid.x;
-    if i < params.n {
-        eval_pair(load(i, 0u), load(i, 1u), i * params.channels);
     }
 }

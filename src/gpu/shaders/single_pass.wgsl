@@ -56,6 +56,13 @@ fn walk(wi_in: vec3<f32>, wo_in: vec3<f32>, ch: u32) -> f32 {
     return f;
 }
 
+// f(wi, wo) of every channel into out[base..]: the single-pass models' one evaluation, shared by the eval and render kernels.
+fn eval_pair(wi: vec3<f32>, wo: vec3<f32>, base: u32) {
+    for (var ch = 0u; ch < params.channels; ch++) {
+        out[base + ch] = walk(wi, wo, ch);
+    }
+}
+
 // The mean relative IOR of a layer over the channels (Walk::terms refracts at it).
 fn mean_eta(layer: Layer) -> f32 {
     var eta = 0.0;

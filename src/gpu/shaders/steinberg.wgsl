@@ -92,23 +92,3 @@ fn passage(layer: Layer, wi: vec3<f32>, wo: vec3<f32>, ch: u32) -> Passage {
     let o = transmission(layer.mf, wo, eta);
     return Passage(i.x, o.x, o.x, refracted_up(wi, i.y), refracted_up(wo, o.y), true);
 }
-
-fn load(i: u32, which: u32) -> vec3<f32> {
-    let k = 6u * i + 3u * which;
-    return vec3<f32>(pairs[k], pairs[k + 1u], pairs[k + 2u]);
-}
-
-// f(wi, wo) of every channel into out[base..]: the model's one evaluation, shared by the eval and render kernels.
-fn eval_pair(wi: vec3<f32>, wo: vec3<f32>, base: u32) {
-    for (var ch = 0u; ch < params.channels; ch++) {
-        out[base + ch] = walk(wi, wo, ch);
-    }
-}
-
-@compute @workgroup_size(64)
-fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
-    let i = gid.x;
-    if i < params.n {
-        eval_pair(load(i, 0u), load(i, 1u), i * params.channels);
-    }
-}
