@@ -2,7 +2,8 @@
 per second under the built-in sky, for each model; beside Mitsuba 3 `llvm_ad_rgb` rendering the same ball (a unit
 sphere, orthographic camera, 256², one sample per pixel) with its `roughconductor` under a directional light, and
 with an `envmap` of the same sky map through its `path` integrator (max depth 2), in the same run. lamina's CPU
-renderer, and its GPU path (both lights) on whatever adapter wgpu finds. Writes the "render" section of
+renderer, and its GPU path (both lights, and a batch of BATCH balls in one call: one dispatch) on whatever adapter
+wgpu finds. Writes the "render" section of
 docs/benchmarks.md. Not a test: nothing is asserted.
 Run: make bench"""
 
@@ -19,6 +20,7 @@ from lamina import renderer as R
 
 SIZE = 256
 ENV_SPP = 16
+BATCH = 16
 LIGHT = R.DirectionalLight((-0.4, 0.5, 0.8), (2.0, 1.5, 1.0))
 #: (label, stack, model)
 CASES = [
@@ -99,6 +101,9 @@ def main() -> None:
             fns[key + f", sky {ENV_SPP} spp"] = lambda s=s, m=model: R.render(
                 s, m, width=SIZE, height=SIZE, lights=[sky], spp=ENV_SPP, device="gpu"
             )
+            fns[key.replace(": ", f": {BATCH} balls of ") + ", directional"] = lambda s=s, m=model: R.render(
+                [s] * BATCH, m, width=SIZE, height=SIZE, lights=[LIGHT], device="gpu"
+            )
     directional, envlit = mitsuba_scene(None), mitsuba_scene(sky.map)
     fns["Mitsuba 3 llvm_ad_rgb roughconductor, directional"] = lambda: np.array(mi.render(directional, seed=0))
     fns[f"Mitsuba 3 llvm_ad_rgb roughconductor, sky {ENV_SPP} spp"] = lambda: np.array(mi.render(envlit, seed=0))
@@ -117,16 +122,19 @@ def main() -> None:
         "`direct` (directional, 1 spp) or `path` with max depth 2 (its `envmap` of the same sky map, "
         f"{ENV_SPP} spp), `np.array(mi.render(scene))` as its users call it. Median of the round-robin runs after a "
         "cold call (Mitsuba's includes compiling its kernels). GPU rows: `device='gpu'` on the adapter named, "
-        "including the upload of the tables and the read-back of the image.",
+        "including the upload of the tables and the read-back of the image; the batch rows render a list of "
+        f"{BATCH} stacks in one call (one dispatch).",
         "",
-        "| renderer | light | median (s) | balls/s | samples/s | ratio to Mitsuba (same light) |",
+        "| renderer | light | median (s) | balls/s | samples/s | throughput ratio to Mitsuba (same light) |",
         "|---|---|---:|---:|---:|---:|",
     ]
     for name, (t, _cold) in times.items():
         kind = "directional" if name.endswith("directional") else "sky"
         ball, light = name.rsplit(", ", 1)
-        samples = SIZE * SIZE * (1 if kind == "directional" else ENV_SPP)
-        lines.append(f"| {ball} | {light} | {t:.3f} | {1 / t:,.2f} | {samples / t:,.0f} | {peer[kind] / t:.2f}x |")
+        balls = BATCH if f"{BATCH} balls of" in name else 1
+        samples = balls * SIZE * SIZE * (1 if kind == "directional" else ENV_SPP)
+        ratio = balls * peer[kind] / t
+        lines.append(f"| {ball} | {light} | {t:.3f} | {balls / t:,.2f} | {samples / t:,.0f} | {ratio:.2f}x |")
     lines += [
         "",
         f"Mitsuba 3: {1 / peer['directional']:,.2f} balls/s directional, "

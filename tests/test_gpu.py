@@ -273,6 +273,28 @@ def test_renderer_matches_the_cpu_renderer(material, model, shape, camera):
     assert big.mean() > 0.2
 
 
+@pytest.mark.parametrize("model", ["microfacet", "belcour", "steinberg", "weidlich_wilkie", "albedo_scaling"])
+@pytest.mark.parametrize("sky", [False, True])
+def test_a_batch_of_different_stacks_is_its_single_renders(model, sky):
+    """One dispatch renders a batch: each stack's parameters and arrays (layers, Belcour's table and diffuse base)
+    sit at their offsets in shared buffers. A batch of stacks of different depths and kinds equals, bit for bit, each
+    stack rendered alone (same code, same random numbers: the sampler is seeded by the pixel within its image)."""
+    names = {
+        "microfacet": ["gold", "brushed-aluminium", "copper"],
+        "belcour": ["anisotropic-coat-metal", "varnished-diffuse", "gold-clearcoat"],
+    }.get(model, ["three-layer", "varnished-diffuse", "gold-clearcoat", "thick-absorbing-slab"])
+    stacks = [materials.preset(n) if n in materials.PRESETS else materials.suite(n) for n in names]
+    lights = [lamina.DirectionalLight((-0.4, 0.5, 0.8), (2.0, 1.5, 1.0))]
+    kwargs = dict(lights=lights, width=24, height=20, device="gpu")
+    if sky:
+        kwargs.update(lights=[lamina.EnvironmentLight("sky")], spp=4, seed=3)
+    batch = lamina.render(stacks, model, **kwargs)
+    assert batch.shape == (len(stacks), 20, 24, 3)
+    for image, stack in zip(batch, stacks, strict=True):
+        np.testing.assert_array_equal(image, lamina.render(stack, model, **kwargs))
+    assert all(np.any(a != b) for a, b in zip(batch, batch[1:]))
+
+
 def _block_means(images: np.ndarray, block: int) -> np.ndarray:
     """(K, H, W, 3) images -> (K, H/block, W/block, 3) block means."""
     k, h, w, c = images.shape

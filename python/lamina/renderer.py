@@ -296,9 +296,10 @@ def render(
     walks, `spp` per pixel and channel. Keyword arguments are the model's options, and its per-element inputs as
     textures over the surface's uv ((h, w) or (h, w, 3) arrays, or constants), e.g. flake_normal for car paint.
     device: "cpu"; "gpu" renders with the models that run on the GPU (lamina.gpu.models(), wgpu, float32, one dispatch
-    per stack in one submission; a mesh is rasterized through the camera first; an environment is sampled as on the
-    CPU, with other random numbers: the images agree statistically; per-element textures and the reference raise
-    ValueError); "auto" takes a hardware GPU for such scenes, else the CPU.
+    for a list of stacks, split only where the adapter's storage-buffer limit requires; a mesh is rasterized through
+    the camera first; an environment is sampled as on the CPU, with other random numbers: the images agree
+    statistically; per-element textures and the reference raise ValueError); "auto" takes a hardware GPU for such
+    scenes, else the CPU.
 
     material: instead of stacks, a lamina.oat.Material or a list of them (Oat 2006's gooey layers, lit by the
     directional and point lights; on the GPU for every shape)."""

@@ -6,8 +6,9 @@
 //! Models on the GPU: `microfacet`, `steinberg`, `weidlich_wilkie` and `albedo_scaling` (every option; the last
 //! three read shaders/layers.wgsl's layers, the single-pass models walk them in shaders/single_pass.wgsl) and
 //! `belcour` (tabulated, every other option). Per-element inputs (car-paint flakes, the patina mask) run on the CPU
-//! only. A model's tables are uploaded once per stack and options and kept (`uploaded`). Inputs of any length are split into
-//! dispatches of at most CHUNK pairs. The renderer (`render`, shaders/scene.wgsl and render.wgsl) renders stacks,
+//! only. A model is prepared once per stack and options and kept, with its arrays on the device (`upload`); the tables
+//! that every stack shares are uploaded once (`table`). Inputs of any length are split into dispatches of at most
+//! CHUNK pairs. A batch of stacks renders in one dispatch (`batched`). The renderer (`render`, shaders/scene.wgsl and render.wgsl) renders stacks,
 //! and Oat 2006's gooey layers (`oat`, shaders/oat.wgsl), on the sphere, the plane and meshes (shaders/mesh.wgsl,
 //! rasterized by raster.wgsl) under directional and point lights; stacks also under an environment (env.wgsl, with
 //! the models' sampling mixtures of sample.wgsl). Device errors come back as values.
@@ -264,8 +265,8 @@ impl Gpu {
                 count: None,
             };
             let read = wgpu::BufferBindingType::Storage { read_only: true };
-            let entries: Vec<wgpu::BindGroupLayoutEntry> = std::iter::once(entry(0, wgpu::BufferBindingType::Uniform))
-                .chain((1..=arrays as u32 + 1).map(|b| entry(b, read)))
+            let entries: Vec<wgpu::BindGroupLayoutEntry> = (0..=arrays as u32 + 1)
+                .map(|b| entry(b, read))
                 .chain([entry(arrays as u32 + 2, wgpu::BufferBindingType::Storage { read_only: false })])
                 .collect();
             let group = self
@@ -291,13 +292,15 @@ impl Gpu {
     }
 }
 
-/// A model prepared for the GPU: its shader's parameters (uniform words; the pair count is set per dispatch at
-/// `count_word`), its read-only arrays (tables, per-channel constants) and the channel count.
+/// A model prepared for the GPU: its shader's parameters (the words of its `Params`; the pair count is set per
+/// dispatch at `count_word`), the stack's read-only arrays (layers, per-channel constants, Belcour's table), each with
+/// the word that holds its offset when stacks are batched, the tables every stack shares, and the channel count.
 pub struct Kernel {
     pub model: &'static str,
     pub words: Vec<u32>,
     pub count_word: usize,
-    pub arrays: Vec<Vec<f32>>,
+    pub arrays: Vec<(Vec<f32>, usize)>,
+    pub tables: Vec<&'static [f32]>,
     pub channels: usize,
 }
 
@@ -393,7 +396,7 @@ pub fn steinberg_kernel(p: &steinberg::Prepared) -> Kernel {
         (ETA_MIN as f32).to_bits(),
         (ETA_MAX as f32).to_bits(),
         fresnel_samples,
-        0,
+        0, // the layers' offset
         0,
         0,
     ];
@@ -401,7 +404,8 @@ pub fn steinberg_kernel(p: &steinberg::Prepared) -> Kernel {
         model: "steinberg",
         words,
         count_word: 0,
-        arrays: vec![layers, table.to_vec(), fits.to_vec()],
+        arrays: vec![(layers, 13)],
+        tables: vec![table, fits],
         channels: p.channels,
     }
 }
@@ -442,7 +446,7 @@ pub fn microfacet_kernel(p: &microfacet::Prepared) -> Kernel {
         f(mf.alpha_y),
         f(cos_phi),
         f(sin_phi),
-        0,
+        0, // the channel rows' offset
         0,
     ];
     let c = channels.len();
@@ -450,12 +454,13 @@ pub fn microfacet_kernel(p: &microfacet::Prepared) -> Kernel {
         model: "microfacet",
         words,
         count_word: 4,
-        arrays: vec![channels.into_iter().flatten().map(|x| x as f32).collect()],
+        arrays: vec![(channels.into_iter().flatten().map(|x| x as f32).collect(), 14)],
+        tables: vec![],
         channels: c,
     }
 }
 
-/// The Belcour kernel: 12 words in the layout of `Params` in belcour.wgsl, the table and the diffuse base.
+/// The Belcour kernel: 16 words in the layout of `Params` in belcour.wgsl, the table and the diffuse base.
 pub fn belcour_kernel(p: &belcour::Prepared) -> Result<Kernel> {
     let Some(d) = p.gpu_data() else {
         return value_error("model 'belcour' with tabulated=False runs on the CPU only; use device='cpu'");
@@ -476,15 +481,18 @@ pub fn belcour_kernel(p: &belcour::Prepared) -> Result<Kernel> {
         (eta as f32).to_bits(),
         0,
         0,
+        0, // the offsets of record, t_down, t_up and diffuse
+        0,
+        0,
+        0,
     ];
-    // Storage buffers may not be empty: a stack without a diffuse base gets one unused row.
-    let diffuse: Vec<f32> =
-        if diffuse.is_empty() { vec![0.0; 2] } else { diffuse.iter().flatten().map(|&x| x as f32).collect() };
+    let diffuse: Vec<f32> = diffuse.iter().flatten().map(|&x| x as f32).collect();
     Ok(Kernel {
         model: "belcour",
         words,
         count_word: 0,
-        arrays: vec![f32s(d.record), f32s(d.t_down), f32s(d.t_up), diffuse],
+        arrays: vec![(f32s(d.record), 12), (f32s(d.t_down), 13), (f32s(d.t_up), 14), (diffuse, 15)],
+        tables: vec![],
         channels: channels as usize,
     })
 }
@@ -494,7 +502,7 @@ pub fn belcour_kernel(p: &belcour::Prepared) -> Result<Kernel> {
 pub fn weidlich_wilkie_kernel(p: &weidlich_wilkie::Prepared) -> Kernel {
     use crate::tables::elek::D_SIZE;
     let (layers, fresnel_samples) = single_pass_layers(&p.walk.layers, p.channels);
-    let beckmann = if p.precomputed { beckmann_table().samples().to_vec() } else { vec![0.0] };
+    let beckmann: &'static [f32] = if p.precomputed { beckmann_table().samples() } else { &[0.0] };
     let words = vec![
         0,
         p.channels as u32,
@@ -505,11 +513,18 @@ pub fn weidlich_wilkie_kernel(p: &weidlich_wilkie::Prepared) -> Kernel {
         fresnel_samples,
         p.precomputed as u32,
         D_SIZE as u32,
-        0,
+        0, // the layers' offset
         0,
         0,
     ];
-    Kernel { model: "weidlich_wilkie", words, count_word: 0, arrays: vec![layers, beckmann], channels: p.channels }
+    Kernel {
+        model: "weidlich_wilkie",
+        words,
+        count_word: 0,
+        arrays: vec![(layers, 9)],
+        tables: vec![beckmann],
+        channels: p.channels,
+    }
 }
 
 /// The albedo-scaling kernel: 16 words in the layout of `Params` in albedo_scaling.wgsl, the layers and the FGD table.
@@ -533,13 +548,14 @@ pub fn albedo_scaling_kernel(p: &albedo_scaling::Prepared) -> Kernel {
         f(ETA_MIN),
         f(ETA_MAX),
         f(KAPPA_MAX),
-        0,
+        0, // the layers' offset
     ];
     Kernel {
         model: "albedo_scaling",
         words,
         count_word: 0,
-        arrays: vec![layers, fgd().data().to_vec()],
+        arrays: vec![(layers, 15)],
+        tables: vec![fgd().data()],
         channels: p.channels,
     }
 }
@@ -562,11 +578,49 @@ fn unsupported(model: &str) -> Error {
     Error::Value(format!("model {model:?} has no GPU implementation yet (GPU models: {names:?}); use device='cpu'"))
 }
 
-/// A kernel with its arrays uploaded to the device.
+/// A kernel with its arrays and tables on the device, as `batched` binds them for it alone.
 struct Uploaded {
     kernel: Kernel,
     arrays: Vec<wgpu::Buffer>,
 }
+
+/// One model's kernels for stacks that one dispatch serves: their `Params`, one after the other, each holding its
+/// arrays' offsets; and group 0's read-only buffers: each array of every stack, concatenated, then the shared tables.
+fn batched(gpu: &Gpu, kernels: &[&Kernel]) -> (Vec<u32>, Vec<wgpu::Buffer>) {
+    let mut words = Vec::new();
+    let mut arrays = vec![Vec::new(); kernels[0].arrays.len()];
+    for kernel in kernels {
+        let mut own = kernel.words.clone();
+        for ((array, word), all) in kernel.arrays.iter().zip(&mut arrays) {
+            own[*word] = all.len() as u32;
+            all.extend_from_slice(array);
+        }
+        words.extend(own);
+    }
+    // Storage buffers may not be empty: an array that no stack has (Belcour's diffuse base) gets an unused value.
+    let buffers = arrays
+        .iter()
+        .map(|a| init(gpu, "array", bytemuck::cast_slice(if a.is_empty() { &[0.0] } else { a }), STORAGE))
+        .chain(kernels[0].tables.iter().map(|t| table(gpu, t)))
+        .collect();
+    (words, buffers)
+}
+
+/// A table that every stack shares (Steinberg's, the FGD, Elek's Beckmann table), uploaded once per process.
+fn table(gpu: &Gpu, data: &'static [f32]) -> wgpu::Buffer {
+    static TABLES: Mutex<Vec<((usize, usize), wgpu::Buffer)>> = Mutex::new(Vec::new());
+    // Static data never moves: its address and length name it.
+    let key = (data.as_ptr() as usize, data.len());
+    let mut tables = TABLES.lock().unwrap_or_else(|e| e.into_inner());
+    if let Some((_, b)) = tables.iter().find(|(k, _)| *k == key) {
+        return b.clone();
+    }
+    let b = init(gpu, "table", bytemuck::cast_slice(data), STORAGE);
+    tables.push((key, b.clone()));
+    b
+}
+
+const STORAGE: wgpu::BufferUsages = wgpu::BufferUsages::STORAGE;
 
 const CACHED: usize = 16;
 
@@ -584,17 +638,7 @@ fn upload(gpu: &Gpu, model: &str, stack: &Stack, opts: &Options) -> Result<Arc<U
         return Ok(found);
     }
     let kernel = kernel(model, stack, opts)?;
-    let arrays = kernel
-        .arrays
-        .iter()
-        .map(|a| {
-            gpu.device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-                label: Some("table"),
-                contents: bytemuck::cast_slice(a),
-                usage: wgpu::BufferUsages::STORAGE,
-            })
-        })
-        .collect();
+    let (_, arrays) = batched(gpu, &[&kernel]);
     let up = Arc::new(Uploaded { kernel, arrays });
     cache.insert(0, (key, up.clone()));
     cache.truncate(CACHED);
@@ -618,7 +662,7 @@ fn batch(gpu: &Gpu, up: &Uploaded, pipeline: &wgpu::ComputePipeline, query: Quer
     let init = |label, contents: &[u8], usage| {
         device.create_buffer_init(&wgpu::util::BufferInitDescriptor { label: Some(label), contents, usage })
     };
-    let params = init("params", bytemuck::cast_slice(&words), wgpu::BufferUsages::UNIFORM);
+    let params = init("params", bytemuck::cast_slice(&words), STORAGE);
     let pair_buf = init("pairs", bytemuck::cast_slice(pairs), wgpu::BufferUsages::STORAGE);
     let out = device.create_buffer(&wgpu::BufferDescriptor {
         label: Some("f"),
@@ -754,15 +798,17 @@ pub struct Scene {
     pub env: Option<([u32; 8], Vec<f32>, Vec<f32>)>,
 }
 
-/// The scene's uniform parameters (RenderParams in scene.wgsl) and light rows, on the device.
-fn scene_buffers(gpu: &Gpu, scene: &Scene) -> (wgpu::Buffer, wgpu::Buffer) {
+/// The scene's uniform parameters (RenderParams in scene.wgsl) for a dispatch rendering `stacks` images, and the
+/// light rows, on the device.
+fn scene_buffers(gpu: &Gpu, scene: &Scene, stacks: usize) -> (wgpu::Buffer, wgpu::Buffer) {
     let mut words = [0u32; 24];
-    words[..5].copy_from_slice(&[
+    words[..6].copy_from_slice(&[
         scene.width as u32,
         scene.height as u32,
         scene.shape,
         scene.camera.is_some() as u32,
         scene.lights.len() as u32,
+        stacks as u32,
     ]);
     for (r, v) in scene.camera.unwrap_or_default().iter().enumerate() {
         for (c, x) in v.iter().enumerate() {
@@ -903,8 +949,8 @@ fn finish(gpu: &Gpu, encoder: wgpu::CommandEncoder, read: &wgpu::Buffer) -> Resu
     Ok(bytemuck::cast_slice(&view).to_vec())
 }
 
-/// Renders each stack under the scene's directional and point lights: (stacks, height, width, 3) float32 radiance.
-/// One dispatch per stack (each with its own tables), all in one submission.
+/// Renders each stack under the scene's lights (and environment): (stacks, height, width, 3) float32 radiance. One
+/// dispatch renders every stack (`batched`), or as many as the adapter's storage-buffer limit holds.
 pub fn render(model: &str, stacks: &[Stack], opts: &Options, scene: &Scene) -> Result<Vec<f32>> {
     let gpu = gpu()?;
     scoped(gpu, || render_scoped(gpu, model, stacks, opts, scene))
@@ -916,71 +962,83 @@ fn render_scoped(gpu: &'static Gpu, model: &str, stacks: &[Stack], opts: &Option
     if scene.env.is_some() {
         stacks.iter().try_for_each(fits_the_mixture)?;
     }
+    let ups = stacks.iter().map(|s| upload(gpu, model, s, opts)).collect::<Result<Vec<_>>>()?;
+    if ups.iter().any(|u| u.kernel.channels != 3) {
+        return value_error("render takes RGB stacks (3 channels)");
+    }
     let env = scene.env.as_ref().map(|(words, rgb, dists)| {
-        let storage = wgpu::BufferUsages::STORAGE;
         let params = init(gpu, "env params", bytemuck::cast_slice(words), wgpu::BufferUsages::UNIFORM);
         [
             params,
-            init(gpu, "env", bytemuck::cast_slice(rgb), storage),
-            init(gpu, "env dists", bytemuck::cast_slice(dists), storage),
+            init(gpu, "env", bytemuck::cast_slice(rgb), STORAGE),
+            init(gpu, "env dists", bytemuck::cast_slice(dists), STORAGE),
         ]
     });
-    let pixels = scene.width * scene.height;
-    let (render_params, lights) = scene_buffers(gpu, scene);
-    let size = (4 * 3 * pixels) as u64;
-    let usage = wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST;
-    let read = buffer(gpu, "readback", size * stacks.len() as u64, usage);
-    let mut encoder = gpu.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: None });
-    // A mesh: rasterized once through the camera; each stack's kernel reads the surface back (`render_mesh`).
     let mesh = scene.mesh.as_ref().map(|(rows, tris)| {
-        let vertices = init(gpu, "vertices", bytemuck::cast_slice(rows), wgpu::BufferUsages::STORAGE);
-        let triangles = init(gpu, "triangles", bytemuck::cast_slice(tris), wgpu::BufferUsages::STORAGE);
-        let size = [scene.width, scene.height];
-        let seen = rasterize(
-            gpu,
-            &mut encoder,
-            &gpu.raster[1],
-            size,
-            [&vertices, &triangles],
-            tris.len() / 3,
-            Some(&render_params),
-        );
-        (vertices, triangles, seen)
+        [
+            init(gpu, "vertices", bytemuck::cast_slice(rows), STORAGE),
+            init(gpu, "triangles", bytemuck::cast_slice(tris), STORAGE),
+        ]
     });
-    let mut keep = Vec::new();
-    for (s, stack) in stacks.iter().enumerate() {
-        let up = upload(gpu, model, stack, opts)?;
-        if up.kernel.channels != 3 {
-            return value_error("render takes RGB stacks (3 channels)");
-        }
-        let params = init(gpu, "params", bytemuck::cast_slice(&up.kernel.words), wgpu::BufferUsages::UNIFORM);
-        let scratch = buffer(gpu, "f", size, wgpu::BufferUsages::STORAGE);
-        let image = buffer(gpu, "image", size, wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC);
-        // Group 0 as the render entry point uses it: the parameters, the model's arrays and `out` (not `pairs`).
-        let n = up.arrays.len() as u32;
-        let model_buffers: Vec<(u32, Res)> = std::iter::once((0, Res::Buffer(&params)))
-            .chain(up.arrays.iter().enumerate().map(|(j, b)| (j as u32 + 1, Res::Buffer(b))))
-            .chain([(n + 2, Res::Buffer(&scratch))])
-            .collect();
-        let scene_group = [(0, Res::Buffer(&render_params)), (1, Res::Buffer(&lights)), (2, Res::Buffer(&image))];
-        let mut groups = vec![group(gpu, pipeline, 0, &model_buffers), group(gpu, pipeline, 1, &scene_group)];
-        if let Some((vertices, triangles, seen)) = &mesh {
-            let resources = [(0, Res::Buffer(vertices)), (1, Res::Buffer(triangles)), (2, Res::View(seen))];
-            groups.push(group(gpu, pipeline, 2, &resources));
-        }
-        if let Some(buffers) = &env {
-            if mesh.is_none() {
-                // Groups are numbered: without a mesh, an empty group 2 keeps the environment at 3.
-                groups.push(group(gpu, pipeline, 2, &[]));
-            }
-            let resources: Vec<(u32, Res)> =
-                buffers.iter().enumerate().map(|(b, x)| (b as u32, Res::Buffer(x))).collect();
-            groups.push(group(gpu, pipeline, 3, &resources));
-        }
-        dispatch(&mut encoder, pipeline, &groups.iter().collect::<Vec<_>>(), pixels);
-        encoder.copy_buffer_to_buffer(&image, 0, &read, s as u64 * size, size);
-        keep.push((up, params, scratch, image));
+    // Per stack, its image and its scratch (3 channels each) and its arrays must fit the storage-buffer limit.
+    let limit = gpu.device.limits().max_storage_buffer_binding_size as usize;
+    let image_bytes = 12 * scene.width * scene.height;
+    let array_bytes = ups.iter().flat_map(|u| u.kernel.arrays.iter().map(|(a, _)| 4 * a.len())).max().unwrap_or(0);
+    let per_dispatch = (limit / image_bytes.max(array_bytes).max(1)).max(1);
+    let mut image = Vec::with_capacity(stacks.len() * image_bytes / 4);
+    for chunk in ups.chunks(per_dispatch) {
+        let kernels: Vec<&Kernel> = chunk.iter().map(|u| &u.kernel).collect();
+        image.extend(render_batch(gpu, pipeline, &kernels, scene, mesh.as_ref(), env.as_ref())?);
     }
+    Ok(image)
+}
+
+/// One dispatch of the render `pipeline` over every pixel of each kernel's stack (a mesh rasterized once through the
+/// camera first, its surface read back by each pixel): their images, one after the other.
+fn render_batch(
+    gpu: &Gpu,
+    pipeline: &wgpu::ComputePipeline,
+    kernels: &[&Kernel],
+    scene: &Scene,
+    mesh: Option<&[wgpu::Buffer; 2]>,
+    env: Option<&[wgpu::Buffer; 3]>,
+) -> Result<Vec<f32>> {
+    let threads = kernels.len() * scene.width * scene.height;
+    let (render_params, lights) = scene_buffers(gpu, scene, kernels.len());
+    let (words, arrays) = batched(gpu, kernels);
+    let params = init(gpu, "params", bytemuck::cast_slice(&words), STORAGE);
+    let size = (4 * 3 * threads) as u64;
+    let scratch = buffer(gpu, "f", size, STORAGE);
+    let image = buffer(gpu, "image", size, STORAGE | wgpu::BufferUsages::COPY_SRC);
+    let read = buffer(gpu, "readback", size, wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST);
+    let mut encoder = gpu.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: None });
+    // Group 0 as the render entry points use it: the parameters, the model's arrays and `out` (not `pairs`).
+    let n = arrays.len() as u32;
+    let model_buffers: Vec<(u32, Res)> = std::iter::once((0, Res::Buffer(&params)))
+        .chain(arrays.iter().enumerate().map(|(j, b)| (j as u32 + 1, Res::Buffer(b))))
+        .chain([(n + 2, Res::Buffer(&scratch))])
+        .collect();
+    let scene_group = [(0, Res::Buffer(&render_params)), (1, Res::Buffer(&lights)), (2, Res::Buffer(&image))];
+    let mut groups = vec![group(gpu, pipeline, 0, &model_buffers), group(gpu, pipeline, 1, &scene_group)];
+    if let Some([vertices, triangles]) = mesh {
+        let triangle_count = scene.mesh.as_ref().map_or(0, |(_, t)| t.len() / 3);
+        let size = [scene.width, scene.height];
+        let raster = &gpu.raster[1];
+        let seen =
+            rasterize(gpu, &mut encoder, raster, size, [vertices, triangles], triangle_count, Some(&render_params));
+        let resources = [(0, Res::Buffer(vertices)), (1, Res::Buffer(triangles)), (2, Res::View(&seen))];
+        groups.push(group(gpu, pipeline, 2, &resources));
+    }
+    if let Some(buffers) = env {
+        if mesh.is_none() {
+            // Groups are numbered: without a mesh, an empty group 2 keeps the environment at 3.
+            groups.push(group(gpu, pipeline, 2, &[]));
+        }
+        let resources: Vec<(u32, Res)> = buffers.iter().enumerate().map(|(b, x)| (b as u32, Res::Buffer(x))).collect();
+        groups.push(group(gpu, pipeline, 3, &resources));
+    }
+    dispatch(&mut encoder, pipeline, &groups.iter().collect::<Vec<_>>(), threads);
+    encoder.copy_buffer_to_buffer(&image, 0, &read, 0, size);
     finish(gpu, encoder, &read)
 }
 

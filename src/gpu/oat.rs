@@ -86,7 +86,7 @@ type Packed = (Vec<[u32; 4]>, Vec<f32>);
 fn render_scoped(gpu: &'static Gpu, materials: &[Arc<Prepared>], packed: &[Packed], scene: &Scene) -> Result<Vec<f32>> {
     let [light_map, render, light_map_mesh, dilate, store, render_mesh] = &gpu.oat;
     let pixels = scene.width * scene.height;
-    let (render_params, lights) = scene_buffers(gpu, scene);
+    let (render_params, lights) = scene_buffers(gpu, scene, 1);
     let size = (4 * 3 * pixels) as u64;
     let usage = wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST;
     let read = buffer(gpu, "readback", size * materials.len() as u64, usage);

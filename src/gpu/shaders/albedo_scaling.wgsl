@@ -15,10 +15,13 @@ struct Params {
     eta_min: f32,
     eta_max: f32,
     kappa_max: f32,
-    pad1: u32,
+    layers_base: u32,  // where the stack's layers start in `layers`
 }
 
-@group(0) @binding(0) var<uniform> params: Params;
+// Every stack's parameters (one for per-element queries; one per stack in a batched render, gpu::batched) and, in
+// `params`, the current thread's.
+@group(0) @binding(0) var<storage, read> stack_params: array<Params>;
+var<private> params: Params;
 // [μ][α][η][κ]
 @group(0) @binding(2) var<storage, read> fgd: array<f32>;
 @group(0) @binding(3) var<storage, read> pairs: array<f32>;

@@ -14,16 +14,24 @@ struct Params {
     diffuse_eta: f32,
     pad0: u32,
     pad1: u32,
+    // Where the stack's values start in record, t_down, t_up and diffuse.
+    record_base: u32,
+    t_down_base: u32,
+    t_up_base: u32,
+    diffuse_base: u32,
 }
 
-@group(0) @binding(0) var<uniform> params: Params;
+// Every stack's parameters (one for per-element queries; one per stack in a batched render, gpu::batched) and, in
+// `params`, the current thread's.
+@group(0) @binding(0) var<storage, read> stack_params: array<Params>;
+var<private> params: Params;
 // [node][azimuth][lobe][width]: roughness (1 value, or the roughness matrix xx, xy, yy), then energy per channel.
 @group(0) @binding(1) var<storage, read> record: array<f32>;
 // [node][azimuth][channel]: energy transmitted down to the base and up from it.
 @group(0) @binding(2) var<storage, read> t_down: array<f32>;
 @group(0) @binding(3) var<storage, read> t_up: array<f32>;
 // Per channel: (albedo, R̄↑) of the diffuse base.
-@group(0) @binding(4) var<storage, read> diffuse: array<vec2<f32>>;
+@group(0) @binding(4) var<storage, read> diffuse: array<f32>;
 @group(0) @binding(5) var<storage, read> pairs: array<f32>;
 @group(0) @binding(6) var<storage, read_write> out: array<f32>;
 
@@ -126,9 +134,15 @@ fn interpolate(c: Corners, offset: u32) -> f32 {
     let w = params.lobes * params.width;
     var v = 0.0;
     for (var q = 0; q < 4; q++) {
-        v += c.weight[q] * record[u32(c.index[q]) * w + offset];
+        v += c.weight[q] * record[params.record_base + u32(c.index[q]) * w + offset];
     }
     return v;
+}
+
+// Channel ch's (albedo, R̄↑) of the diffuse base.
+fn diffuse_row(ch: u32) -> vec2<f32> {
+    let k = params.diffuse_base + 2u * ch;
+    return vec2<f32>(diffuse[k], diffuse[k + 1u]);
 }
 
 // T↓ or T↑ of channel ch at the corners.
@@ -136,7 +150,7 @@ fn transmitted(c: Corners, down: bool, ch: u32) -> f32 {
     var v = 0.0;
     for (var q = 0; q < 4; q++) {
         let k = u32(c.index[q]) * params.channels + ch;
-        v += c.weight[q] * select(t_up[k], t_down[k], down);
+        v += c.weight[q] * select(t_up[params.t_up_base + k], t_down[params.t_down_base + k], down);
     }
     return v;
 }
@@ -175,7 +189,7 @@ fn proposals(wo: vec3<f32>) {
     if params.has_diffuse != 0u {
         var energy = 0.0;
         for (var ch = 0u; ch < params.channels; ch++) {
-            let d = diffuse[ch];
+            let d = diffuse_row(ch);
             let t = transmitted(c, false, ch);
             energy += d.x * t * t / (1.0 - d.x * d.y);
         }
@@ -229,7 +243,7 @@ fn eval_pair(wi: vec3<f32>, wo: vec3<f32>, base: u32) {
         }
         let eta2 = params.diffuse_eta * params.diffuse_eta;
         for (var ch = 0u; ch < params.channels; ch++) {
-            let d = diffuse[ch];
+            let d = diffuse_row(ch);
             out[base + ch] += d.x * FRAC_1_PI * transmitted(down, true, ch) * transmitted(up, false, ch) / ((1.0 - d.x * d.y) * eta2);
         }
     }

@@ -182,31 +182,33 @@ fn shade_env(hit: Hit, d: vec3<f32>, base: u32, px: u32) -> vec3<f32> {
 // The sphere or the plane under an environment (seen where the camera ray misses).
 @compute @workgroup_size(64)
 fn render_env(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups) groups: vec3<u32>) {
-    let px = thread_index(gid, groups);
-    if px >= rp.width * rp.height {
+    let t = thread_index(gid, groups);
+    let px = begin(t);
+    if px == rp.width * rp.height {
         return;
     }
     let ray = camera_ray(px);
     let hit = intersect(ray[0], ray[1]);
     var rgb = env_radiance(ray[1]);
     if hit.found {
-        rgb = shade_env(hit, ray[1], px * params.channels, px);
+        rgb = shade_env(hit, ray[1], t * params.channels, px);
     }
-    store(px, rgb);
+    store(t, rgb);
 }
 
 // A mesh under an environment.
 @compute @workgroup_size(64)
 fn render_mesh_env(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups) groups: vec3<u32>) {
-    let px = thread_index(gid, groups);
-    if px >= rp.width * rp.height {
+    let t = thread_index(gid, groups);
+    let px = begin(t);
+    if px == rp.width * rp.height {
         return;
     }
     let d = camera_ray(px)[1];
     let hit = camera_surface(px, d);
     var rgb = env_radiance(d);
     if hit.found {
-        rgb = shade_env(hit, d, px * params.channels, px);
+        rgb = shade_env(hit, d, t * params.channels, px);
     }
-    store(px, rgb);
+    store(t, rgb);
 }

@@ -1,7 +1,7 @@
 // The single-pass layers on the GPU (src/models/single_pass.rs): the stack's interfaces, slabs and base, their
 // Fresnel terms and the slabs' refraction and Beer–Lambert attenuation, shared by the single-pass walk
 // (single_pass.wgsl) and albedo scaling. Composed after optics.wgsl and before the model's shader, which declares
-// `params` (channels, fresnel, fresnel_samples).
+// `params` (channels, fresnel, fresnel_samples, layers_base).
 
 // The layers as gpu::single_pass_layers writes them: per layer a header of HEADER values, then per channel
 // PER_CHANNEL values and Elek's Fresnel table, (F, 1 − F) at each of params.fresnel_samples nodes (none without).
@@ -22,7 +22,7 @@ struct Layer {
 
 // SpLayer: layer l of the stack.
 fn sp_layer(l: u32) -> Layer {
-    let at = l * (HEADER + channel_stride() * params.channels);
+    let at = params.layers_base + l * (HEADER + channel_stride() * params.channels);
     let mf = Microfacet(u32(layers[at + 1u]), u32(layers[at + 2u]), layers[at + 3u], layers[at + 4u], layers[at + 5u], layers[at + 6u]);
     return Layer(u32(layers[at]), mf, layers[at + 7u], layers[at + 8u], at + HEADER);
 }

@@ -11,14 +11,25 @@ struct Params {
     pad0: u32,
     pad1: u32,
     mf: Microfacet,
+    base: u32,      // where the stack's rows start in `channel`
+    pad2: u32,
 }
 
-@group(0) @binding(0) var<uniform> params: Params;
+// Every stack's parameters (one for per-element queries; one per stack in a batched render, gpu::batched) and, in
+// `params`, the current thread's.
+@group(0) @binding(0) var<storage, read> stack_params: array<Params>;
+var<private> params: Params;
 // Per channel: (eta, k, albedo, f_int): the Prepared variant's values (unused ones 0).
-@group(0) @binding(1) var<storage, read> channel: array<vec4<f32>>;
+@group(0) @binding(1) var<storage, read> channel: array<f32>;
 // Per pair: wi then wo (xyz each, unit).
 @group(0) @binding(2) var<storage, read> pairs: array<f32>;
 @group(0) @binding(3) var<storage, read_write> out: array<f32>;
+
+// Channel ch's row of `channel`.
+fn channel_row(ch: u32) -> vec4<f32> {
+    let k = params.base + 4u * ch;
+    return vec4<f32>(channel[k], channel[k + 1u], channel[k + 2u], channel[k + 3u]);
+}
 
 // microfacet::smooth_coat_lambert: smooth dielectric coat over Lambert, all internal bounces (Weidlich–Wilkie 2007).
 fn smooth_coat_lambert(albedo: f32, eta: f32, f_int: f32, cos_i: f32, cos_o: f32) -> f32 {
@@ -43,7 +54,7 @@ fn specular(wo: vec3<f32>, ch: u32) -> f32 {
     if wo.z <= 0.0 {
         return 0.0;
     }
-    let p = channel[ch];
+    let p = channel_row(ch);
     if params.kind == 0u && params.mf.smooth_ != 0u {
         return fresnel_form_conductor(params.fresnel, wo.z, p.x, p.y);
     }
@@ -59,7 +70,7 @@ fn eval_pair(wi: vec3<f32>, wo: vec3<f32>, base: u32) {
     let geo = reflection_geometry(params.mf, params.g2, wi, wo);
     let shape = oren_nayar_shape(params.sigma, wi, wo);
     for (var c = 0u; c < params.channels; c++) {
-        let p = channel[c];
+        let p = channel_row(c);
         var f = 0.0;
         if above {
             switch params.kind {

@@ -1,6 +1,6 @@
 // The per-element kernels of every model (gpu::Query): eval, sample and pdf over n elements, each a row of two
 // vectors in `pairs` ((wi, wo), or (wo, u) for sample). Composed after the model, which declares `params` (n,
-// channels), `pairs`, `out`, `eval_pair` and `proposals`.
+// channels) of its one stack in `stack_params`, `pairs`, `out`, `eval_pair` and `proposals`.
 
 // Vector `which` (0 or 1) of element i.
 fn load(i: u32, which: u32) -> vec3<f32> {
@@ -11,6 +11,7 @@ fn load(i: u32, which: u32) -> vec3<f32> {
 // Model::eval: f(wi, wo) of every channel per element.
 @compute @workgroup_size(64)
 fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
+    params = stack_params[0];
     let i = gid.x;
     if i < params.n {
         eval_pair(load(i, 0u), load(i, 1u), i * params.channels);
@@ -21,6 +22,7 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
 // pdf per channel, pdf); wi = +z, weight 0 and pdf 0 where nothing is sampled.
 @compute @workgroup_size(64)
 fn sample_main(@builtin(global_invocation_id) gid: vec3<u32>) {
+    params = stack_params[0];
     let i = gid.x;
     if i >= params.n {
         return;
@@ -47,6 +49,7 @@ fn sample_main(@builtin(global_invocation_id) gid: vec3<u32>) {
 // Stack.pdf on the GPU (sample::pdf): the mixture's density of wi for wo per element; 0 for wo below the horizon.
 @compute @workgroup_size(64)
 fn pdf_main(@builtin(global_invocation_id) gid: vec3<u32>) {
+    params = stack_params[0];
     let i = gid.x;
     if i >= params.n {
         return;

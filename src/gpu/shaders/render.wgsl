@@ -1,4 +1,5 @@
-// The renderer's deterministic path for the models (src/render/mod.rs): one thread per pixel, and
+// The renderer's deterministic path for the models (src/render/mod.rs): one thread per pixel of each stack's image
+// (a batch of stacks in one dispatch), and
 // Σ f(l, v) max(0, n·l) E over directional and point lights, f from the model's eval_pair. Composed after
 // optics.wgsl, a model's shader (whose `out` serves as each pixel's scratch), scene.wgsl and mesh.wgsl.
 
@@ -19,34 +20,47 @@ fn shade_lights(hit: Hit, d: vec3<f32>, base: u32) -> vec3<f32> {
     return rgb;
 }
 
+// The pixel of thread t (of its stack's image), with `params` set to that stack's; rp.width·rp.height·rp.stacks
+// (none: past the batch's last image).
+fn begin(t: u32) -> u32 {
+    let pixels = rp.width * rp.height;
+    if t >= pixels * rp.stacks {
+        return pixels;
+    }
+    params = stack_params[t / pixels];
+    return t % pixels;
+}
+
 // The sphere or the plane.
 @compute @workgroup_size(64)
 fn render(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups) groups: vec3<u32>) {
-    let px = thread_index(gid, groups);
-    if px >= rp.width * rp.height {
+    let t = thread_index(gid, groups);
+    let px = begin(t);
+    if px == rp.width * rp.height {
         return;
     }
     let ray = camera_ray(px);
     let hit = intersect(ray[0], ray[1]);
     var rgb = vec3<f32>(0.0);
     if hit.found {
-        rgb = shade_lights(hit, ray[1], px * params.channels);
+        rgb = shade_lights(hit, ray[1], t * params.channels);
     }
-    store(px, rgb);
+    store(t, rgb);
 }
 
 // A mesh: the surface the camera pass found at the pixel.
 @compute @workgroup_size(64)
 fn render_mesh(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups) groups: vec3<u32>) {
-    let px = thread_index(gid, groups);
-    if px >= rp.width * rp.height {
+    let t = thread_index(gid, groups);
+    let px = begin(t);
+    if px == rp.width * rp.height {
         return;
     }
     let d = camera_ray(px)[1];
     let hit = camera_surface(px, d);
     var rgb = vec3<f32>(0.0);
     if hit.found {
-        rgb = shade_lights(hit, d, px * params.channels);
+        rgb = shade_lights(hit, d, t * params.channels);
     }
-    store(px, rgb);
+    store(t, rgb);
 }

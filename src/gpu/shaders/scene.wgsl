@@ -7,7 +7,7 @@ struct RenderParams {
     shape: u32,   // 0 sphere, 1 plane
     camera: u32,  // 0 orthographic, 1 perspective
     lights: u32,
-    pad0: u32,
+    stacks: u32,  // images rendered by the dispatch, one per stack (the models' kernels)
     pad1: u32,
     pad2: u32,
     // Perspective: the pinhole, and the forward, right and up vectors (right and up scaled by tan(fov/2)·aspect
@@ -37,7 +37,7 @@ fn thread_index(gid: vec3<u32>, groups: vec3<u32>) -> u32 {
     return gid.y * groups.x * 64u + gid.x;
 }
 
-// The radiance of pixel px into the image.
+// The radiance of pixel px into the image (of the images of a batch, px counting on through them).
 fn store(px: u32, rgb: vec3<f32>) {
     image[3u * px] = rgb.x;
     image[3u * px + 1u] = rgb.y;

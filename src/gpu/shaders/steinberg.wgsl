@@ -17,12 +17,15 @@ struct Params {
     eta_min: f32,
     eta_max: f32,
     fresnel_samples: u32,  // 0: no Fresnel tables
-    pad0: u32,
+    layers_base: u32,      // where the stack's layers start in `layers`
     pad1: u32,
     pad2: u32,
 }
 
-@group(0) @binding(0) var<uniform> params: Params;
+// Every stack's parameters (one for per-element queries; one per stack in a batched render, gpu::batched) and, in
+// `params`, the current thread's.
+@group(0) @binding(0) var<storage, read> stack_params: array<Params>;
+var<private> params: Params;
 // [μ][α][η][t, s / sin θ, p]
 @group(0) @binding(2) var<storage, read> table: array<f32>;
 // [α][η][a, b, c, d, m, a₁, a₂, b₁, b₂]

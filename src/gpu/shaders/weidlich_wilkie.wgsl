@@ -13,12 +13,15 @@ struct Params {
     fresnel_samples: u32,  // Elek's Fresnel tables in the layers (0: none)
     precomputed: u32,      // Elek's Beckmann table
     d_size: u32,
-    pad0: u32,
+    layers_base: u32,  // where the stack's layers start in `layers`
     pad1: u32,
     pad2: u32,
 }
 
-@group(0) @binding(0) var<uniform> params: Params;
+// Every stack's parameters (one for per-element queries; one per stack in a batched render, gpu::batched) and, in
+// `params`, the current thread's.
+@group(0) @binding(0) var<storage, read> stack_params: array<Params>;
+var<private> params: Params;
 // Elek's Beckmann table [m][u], u = cos⁸θh.
 @group(0) @binding(2) var<storage, read> beckmann: array<f32>;
 @group(0) @binding(3) var<storage, read> pairs: array<f32>;
