@@ -93,6 +93,7 @@ def test_belcour_suite(material):
         {"energy": "fresnel"},
         {"cosines": "real", "jacobian": "j21"},
         {"tir": "fraction"},
+        {"variant": "improved"},
     ],
 )
 @pytest.mark.parametrize("material", ["anisotropic-coat-metal", "varnished-diffuse", "three-layer"])
@@ -114,7 +115,12 @@ def test_layered_models_on_the_suite(material, model):
         ("steinberg", {"fresnel": "schlick", "g2": "v_cavity"}),
         ("steinberg", {"clamp_roughness": False, "eta2": False}),
         ("steinberg", {"interreflection": True}),
+        ("steinberg", {"microfacet_transmission": True}),
+        ("steinberg", {"variant": "improved", "lut": "fitted"}),
+        ("steinberg", {"conductor_interreflection": True, "eta2": False}),
         ("weidlich_wilkie", {"precomputed": True}),
+        ("weidlich_wilkie", {"variant": "improved"}),
+        ("weidlich_wilkie", {"conductor_interreflection": True, "precomputed": True}),
         ("weidlich_wilkie", {"distribution": "ggx", "g2": "height_correlated", "fresnel": "lazanyi"}),
         ("weidlich_wilkie", {"clamp_roughness": False, "eta2": False, "interreflection": True}),
         ("albedo_scaling", {"scaling": "view", "roughening": False}),
@@ -347,20 +353,22 @@ def test_environment_lit_renders_agree_statistically(material, model, shape):
 
 
 @pytest.mark.parametrize(
-    "material,model",
+    "material,model,options",
     [
-        ("gold", "microfacet"),
-        ("brushed-aluminium", "microfacet"),
-        ("clay", "microfacet"),
-        ("rough-coat-rough-copper", "belcour"),
-        ("anisotropic-coat-metal", "belcour"),
-        ("three-layer", "steinberg"),
-        ("varnished-diffuse", "weidlich_wilkie"),
-        ("car-paint", "weidlich_wilkie"),
-        ("gold-clearcoat", "albedo_scaling"),
+        ("gold", "microfacet", {}),
+        ("brushed-aluminium", "microfacet", {}),
+        ("clay", "microfacet", {}),
+        ("rough-coat-rough-copper", "belcour", {}),
+        ("anisotropic-coat-metal", "belcour", {}),
+        ("three-layer", "steinberg", {}),
+        ("gold-clearcoat", "steinberg", {"variant": "improved"}),
+        ("varnished-diffuse", "weidlich_wilkie", {}),
+        ("rough-coat-rough-copper", "weidlich_wilkie", {"conductor_interreflection": True}),
+        ("car-paint", "weidlich_wilkie", {}),
+        ("gold-clearcoat", "albedo_scaling", {}),
     ],
 )
-def test_sample_and_pdf_match_the_cpu(material, model):
+def test_sample_and_pdf_match_the_cpu(material, model, options):
     """Stack.sample and pdf on the GPU: from the same u the same lobe and direction as the CPU (to 1e-3: float32
     directions; Beckmann's inverted CDF in float32), with pdf 0 in the same places; at the GPU's directions its pdf is
     the CPU's to RTOL and its weight is the CPU's f cos θi / pdf to RTOL plus what 4-ulp input changes move f by."""
@@ -369,24 +377,24 @@ def test_sample_and_pdf_match_the_cpu(material, model):
     rng = np.random.default_rng(7)
     wo, _ = _directions(5000, 3)
     u = rng.uniform(size=(5000, 3))
-    wi_c, _, p_c = stack.sample(wo, u, model)
-    wi, weight, pdf = stack.sample(wo, u, model, device="gpu")
+    wi_c, _, p_c = stack.sample(wo, u, model, **options)
+    wi, weight, pdf = stack.sample(wo, u, model, device="gpu", **options)
     assert wi.dtype == np.float32 and weight.shape == (5000, 3)
     assert np.array_equal(pdf > 0, p_c > 0) and np.mean(pdf > 0) > 0.4
     ok = pdf > 0
     assert np.abs(wi[ok] - wi_c[ok]).max() <= 1e-3
     assert np.all(weight[~ok] == 0)
     wi64 = wi[ok].astype(np.float64)
-    p_ref = stack.pdf(wi64, wo[ok], model)
+    p_ref = stack.pdf(wi64, wo[ok], model, **options)
     assert np.max(np.abs(pdf[ok] - p_ref) / p_ref) <= RTOL
-    f = stack.eval(wi64, wo[ok], model)
+    f = stack.eval(wi64, wo[ok], model, **options)
     w_ref = f * wi64[:, 2:] / p_ref[:, None]
     big = w_ref > 1e-6 * w_ref.max()
-    allowed = RTOL + float32_conditioning(stack, wi64, wo[ok], model, None, {}, 7)
+    allowed = RTOL + float32_conditioning(stack, wi64, wo[ok], model, None, options, 7)
     rel = np.abs(weight[ok] - w_ref) / np.where(big, w_ref, 1)
     assert np.all(rel[big] <= allowed[big]), np.max(rel[big] - allowed[big])
     wi_any, wo_any = _directions(5000, 4)  # the pdf of any pair, below the horizon included
-    p_cpu = stack.pdf(wi_any, wo_any, model)
-    p_gpu = stack.pdf(wi_any, wo_any, model, device="gpu")
+    p_cpu = stack.pdf(wi_any, wo_any, model, **options)
+    p_gpu = stack.pdf(wi_any, wo_any, model, device="gpu", **options)
     big = p_cpu > 1e-6 * p_cpu.max()
     assert np.max(np.abs(p_gpu[big] - p_cpu[big]) / p_cpu[big]) <= RTOL and np.all(p_gpu[~big] <= 1e-6 * p_cpu.max())

@@ -16,7 +16,7 @@
 pub mod oat;
 
 use crate::error::{value_error, Error, Result};
-use crate::models::single_pass::SpLayer;
+use crate::models::single_pass::{SpLayer, INTERREFLECTION_NODES};
 use crate::models::{albedo_scaling, belcour, microfacet, steinberg, weidlich_wilkie, Options};
 use crate::optics::distribution::{Distribution, G2Form, Microfacet};
 use crate::optics::fresnel::FresnelForm;
@@ -346,7 +346,8 @@ fn fits_the_mixture(stack: &Stack) -> Result<()> {
 
 /// The single-pass layers as single_pass.wgsl reads them, and the nodes per Fresnel table (0: none): per layer 9
 /// values (kind: 0 dielectric, 1 conductor, 2 diffuse; the microfacet's distribution, smooth flag, αx, αy, cos φ,
-/// sin φ; thickness; Oren–Nayar σ), then per channel 5 (η, κ, σt, albedo, gain) and Elek's Fresnel table, if any,
+/// sin φ; thickness; Oren–Nayar σ), then per channel 5 (η, κ, σt, albedo, gain), a conductor base's inter-reflection
+/// albedo at INTERREFLECTION_NODES cosines (zeros without) and Elek's Fresnel table, if any,
 /// as (F, 1 − F) per node.
 fn single_pass_layers(layers: &[SpLayer], channels: usize) -> (Vec<f32>, u32) {
     let samples =
@@ -359,7 +360,9 @@ fn single_pass_layers(layers: &[SpLayer], channels: usize) -> (Vec<f32>, u32) {
             SpLayer::Dielectric { iface, thickness, sigma_t, albedo } => {
                 (0, &iface.mf, *thickness, 0.0, [&iface.eta, &iface.kappa, sigma_t, albedo, &zeros])
             }
-            SpLayer::Conductor(iface) => (1, &iface.mf, 0.0, 0.0, [&iface.eta, &iface.kappa, &zeros, &zeros, &zeros]),
+            SpLayer::Conductor { iface, .. } => {
+                (1, &iface.mf, 0.0, 0.0, [&iface.eta, &iface.kappa, &zeros, &zeros, &zeros])
+            }
             SpLayer::Diffuse { albedo, sigma, gain } => {
                 (2, &smooth, 0.0, *sigma, [&zeros, &zeros, &zeros, albedo, gain])
             }
@@ -367,8 +370,14 @@ fn single_pass_layers(layers: &[SpLayer], channels: usize) -> (Vec<f32>, u32) {
         let (cos_phi, sin_phi) = mf.frame();
         let header = [kind as f64, dist_code(mf.dist) as f64, mf.is_smooth() as u8 as f64, mf.alpha_x, mf.alpha_y];
         out.extend(header.into_iter().chain([cos_phi, sin_phi, thickness, sigma]).map(|x| x as f32));
+        let interreflected = match layer {
+            SpLayer::Conductor { diffuse, .. } if !diffuse.is_empty() => &diffuse[..],
+            _ => &[],
+        };
         for c in 0..channels {
             out.extend([eta[c], kappa[c], sigma_t[c], albedo[c], gain[c]].map(|x| x as f32));
+            let nodes = interreflected.get(c * INTERREFLECTION_NODES..(c + 1) * INTERREFLECTION_NODES);
+            out.extend((0..INTERREFLECTION_NODES).map(|j| nodes.map_or(0.0, |n| n[j] as f32)));
             let table = layer.interface().and_then(|i| i.table.get(c)).map_or(&[][..], |t| t.samples());
             out.extend(table.iter().copied().chain(std::iter::repeat(0.0)).take(2 * samples));
         }
@@ -397,7 +406,7 @@ pub fn steinberg_kernel(p: &steinberg::Prepared) -> Kernel {
         (ETA_MAX as f32).to_bits(),
         fresnel_samples,
         0, // the layers' offset
-        0,
+        p.microfacet_transmission as u32,
         0,
     ];
     Kernel {

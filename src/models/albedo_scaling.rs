@@ -73,7 +73,7 @@ pub fn prepare(stack: &Stack, opts: &Options) -> Result<Prepared> {
     if opts.roughening {
         let mut above: Option<Microfacet> = None;
         for layer in &mut layers {
-            if let SpLayer::Dielectric { iface, .. } | SpLayer::Conductor(iface) = layer {
+            if let SpLayer::Dielectric { iface, .. } | SpLayer::Conductor { iface, .. } = layer {
                 if let Some(coat) = above.filter(|c| !c.is_smooth()) {
                     let mf = iface.mf;
                     let (ax, ay) = if mf.is_smooth() { (0.0, 0.0) } else { (mf.alpha_x, mf.alpha_y) };
@@ -115,7 +115,7 @@ impl Prepared {
     fn interfaces(&self) -> impl Iterator<Item = (&Interface, Option<(f64, &[f64])>)> {
         self.layers.iter().filter_map(|layer| match layer {
             SpLayer::Dielectric { iface, thickness, sigma_t, .. } => Some((iface, Some((*thickness, &sigma_t[..])))),
-            SpLayer::Conductor(iface) => Some((iface, None)),
+            SpLayer::Conductor { iface, .. } => Some((iface, None)),
             SpLayer::Diffuse { .. } => None,
         })
     }

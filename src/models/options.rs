@@ -59,6 +59,10 @@ pub struct Options {
     pub eta2: bool,
     /// Single-pass models: the geometric series of inter-reflections between a diffuse base and the coat above it.
     pub interreflection: bool,
+    /// Single-pass models: the inter-reflections between a conductor base and the coat above it.
+    pub conductor_interreflection: bool,
+    /// Belcour, Steinberg: rough interfaces transmit what single-scattering microfacets do (tables::steinberg's T).
+    pub microfacet_transmission: bool,
     /// Elek's patina (with the per-element input `mask`): smoothstep centre and half-width, and the tarnish of the
     /// base under the patina per channel.
     pub extent: f64,
@@ -84,6 +88,8 @@ impl Default for Options {
             clamp_roughness: true,
             eta2: true,
             interreflection: false,
+            microfacet_transmission: false,
+            conductor_interreflection: false,
             extent: 0.5,
             transition: 0.1,
             tint: vec![1.0],
@@ -136,6 +142,40 @@ pub const INTERREFLECTION: OptionSpec = flag(
     "lamina's correction: inter-reflections between a diffuse base and the coat above, 1/(1 − ρ r) in closed form",
 );
 
+pub const CONDUCTOR_INTERREFLECTION: OptionSpec = flag(
+    "conductor_interreflection",
+    false,
+    "lamina's correction: inter-reflections between a conductor base and the coat above (what the coat reflects back \
+     down, total internal reflection included, returns diffusely)",
+);
+pub const MICROFACET_TRANSMISSION: OptionSpec = flag(
+    "microfacet_transmission",
+    false,
+    "lamina's correction: rough interfaces transmit what single-scattering microfacets do (masking included, \
+     lamina's table) instead of 1 − R or the mean Fresnel transmission",
+);
+
+/// `variant`: "published" (the default) or "improved", which switches on the corrections that `improved` lists
+/// for the model; options given beside it still override them.
+pub const fn variant(improved: &'static str) -> OptionSpec {
+    OptionSpec {
+        name: "variant",
+        kind: OptionKind::Choice { choices: &["published", "improved"], default: "published" },
+        doc: improved,
+    }
+}
+
+/// The corrections (flags) that `variant="improved"` switches on, per model: each chosen by its measured effect
+/// (docs/validation.md, "lamina's corrections, one at a time").
+pub fn improved(model: &str) -> &'static [&'static str] {
+    match model {
+        "belcour" => &["microfacet_transmission"],
+        "steinberg" => &["interreflection", "conductor_interreflection"],
+        "weidlich_wilkie" => &["interreflection"],
+        _ => &[],
+    }
+}
+
 /// Parses an option's value against its kind: a string of the choices, a bool, or numbers in range.
 fn check(spec: &OptionSpec, value: &Value) -> Result<()> {
     let name = spec.name;
@@ -178,6 +218,10 @@ impl Options {
                 OptionKind::Channels { default, .. } => Value::List(vec![default]),
             };
             o.set(spec.name, &default);
+        }
+        let improved_variant = given.iter().any(|(k, v)| k == "variant" && *v == Value::Text("improved".into()));
+        if improved_variant && specs.iter().any(|s| s.name == "variant") {
+            improved(model).iter().for_each(|name| o.set(name, &Value::Flag(true)));
         }
         for (key, value) in given {
             let Some(spec) = specs.iter().find(|s| s.name == key) else {
@@ -236,6 +280,9 @@ impl Options {
             "clamp_roughness" => self.clamp_roughness = flag,
             "eta2" => self.eta2 = flag,
             "interreflection" => self.interreflection = flag,
+            "microfacet_transmission" => self.microfacet_transmission = flag,
+            "conductor_interreflection" => self.conductor_interreflection = flag,
+            "variant" => {} // its corrections are set in `parse`
             "scaling" => self.scaling_reciprocal = text() == "reciprocal",
             "roughening" => self.roughening = flag,
             "extent" => self.extent = number,
@@ -263,6 +310,29 @@ mod tests {
             assert_eq!(o, Options::parse(info.name, info.options, &[]).unwrap());
             let err = Options::parse(info.name, info.options, &[("nope".into(), Value::Flag(true))]).unwrap_err();
             assert!(err.to_string().contains("has no option \"nope\""), "{err}");
+        }
+    }
+
+    #[test]
+    fn the_improved_variant_sets_its_corrections_and_given_options_override_them() {
+        let text = Value::Text("improved".into());
+        for info in super::super::CATALOGUE.iter().filter(|i| i.options.iter().any(|s| s.name == "variant")) {
+            let names: Vec<&str> = info.options.iter().map(|s| s.name).collect();
+            assert!(!improved(info.name).is_empty(), "{}", info.name);
+            for name in improved(info.name) {
+                assert!(names.contains(name), "{}: {name}", info.name);
+                let on = Options::parse(info.name, info.options, &[("variant".into(), text.clone())]).unwrap();
+                let off = Options::parse(
+                    info.name,
+                    info.options,
+                    &[("variant".into(), text.clone()), (name.to_string(), Value::Flag(false))],
+                )
+                .unwrap();
+                assert_ne!(on, off, "{}: {name}", info.name);
+            }
+            let published = Options::parse(info.name, info.options, &[]).unwrap();
+            let given = [("variant".into(), Value::Text("published".into()))];
+            assert_eq!(published, Options::parse(info.name, info.options, &given).unwrap());
         }
     }
 }

@@ -8,7 +8,8 @@
 //! lamina's slabs map onto these models as: extinction σ = σa + σs for the Beer–Lambert factor k, and colour c =
 //! σs / σ (the single-scattering albedo) for the diffuse term of scattering slabs; the HG asymmetry g is not used.
 //! As in both publications, no inter-reflections between layers are modelled by default; lamina's option
-//! `interreflection` adds those between a diffuse base and the coat above it (`add_interreflection`). The radiance
+//! `interreflection` adds those between a diffuse base and the coat above it (`add_interreflection`), and
+//! `conductor_interreflection` those between a conductor base and its coat (`add_conductor_interreflection`). The radiance
 //! compression 1/η² across each interface, which both publications omit, is lamina's option `eta2` (on by default:
 //! measured in docs/validation.md).
 
@@ -69,7 +70,13 @@ pub enum SpLayer {
         sigma_t: Vec<f64>,
         albedo: Vec<f64>,
     },
-    Conductor(Interface),
+    /// `diffuse`: empty, or with the `conductor_interreflection` correction per channel the Lambertian albedo of the
+    /// light that the coat above returns to the base, at INTERREFLECTION_NODES cosines of the light's arrival
+    /// (`add_conductor_interreflection`, `interreflected`).
+    Conductor {
+        iface: Interface,
+        diffuse: Vec<f64>,
+    },
     /// `gain` per channel: 1, or with the `interreflection` correction the geometric series 1/(1 − ρ r).
     Diffuse {
         albedo: Vec<f64>,
@@ -82,7 +89,7 @@ impl SpLayer {
     /// The layer's interface (none for a diffuse base).
     pub fn interface(&self) -> Option<&Interface> {
         match self {
-            SpLayer::Dielectric { iface, .. } | SpLayer::Conductor(iface) => Some(iface),
+            SpLayer::Dielectric { iface, .. } | SpLayer::Conductor { iface, .. } => Some(iface),
             SpLayer::Diffuse { .. } => None,
         }
     }
@@ -116,7 +123,9 @@ pub fn layers(stack: &Stack, dist: Distribution, clamp_roughness: bool) -> Vec<S
                 });
                 rough_above = (rough_above.0.max(alpha.0), rough_above.1.max(alpha.1));
             }
-            Layer::Conductor { alpha, angle, .. } => out.push(SpLayer::Conductor(iface(*alpha, *angle, true))),
+            Layer::Conductor { alpha, angle, .. } => {
+                out.push(SpLayer::Conductor { iface: iface(*alpha, *angle, true), diffuse: Vec::new() })
+            }
             Layer::Diffuse { albedo, roughness } => {
                 let gain = vec![1.0; albedo.len()];
                 out.push(SpLayer::Diffuse { albedo: albedo.clone(), sigma: *roughness, gain })
@@ -127,11 +136,9 @@ pub fn layers(stack: &Stack, dist: Distribution, clamp_roughness: bool) -> Vec<S
 }
 
 /// The inter-reflections between a diffuse base of albedo ρ and the coat above it, summed (lamina's correction):
-/// light leaving the base diffusely returns with probability r = F̄(1/η) T̄², F̄ the coat interface's hemispherical
-/// reflectance seen from inside (optics::fresnel::diffuse_reflectance) and T̄ = 2∫ e^{−σ d/μ} μ dμ the slab's
-/// cosine-averaged transmittance, so the base's light is multiplied by Σ (ρ r)^k = 1/(1 − ρ r). For a smooth,
-/// clear coat this is the exact smooth-coat-over-Lambert result (e.g. Mitsuba's `plastic`). Only the coat right
-/// above the base takes part; its roughness is ignored in r.
+/// light leaving the base diffusely returns with probability r (`coat_return`), so the base's light is multiplied by
+/// Σ (ρ r)^k = 1/(1 − ρ r). For a smooth, clear coat this is the exact smooth-coat-over-Lambert result (e.g.
+/// Mitsuba's `plastic`). Only the coat right above the base takes part; its roughness is ignored in r.
 pub fn add_interreflection(layers: &mut [SpLayer]) {
     let n = layers.len();
     if n < 2 {
@@ -143,19 +150,126 @@ pub fn add_interreflection(layers: &mut [SpLayer]) {
     else {
         return;
     };
-    let nodes = crate::quadrature::gauss_legendre(32);
     for (c, g) in gain.iter_mut().enumerate() {
-        let tau = sigma_t[c] * thickness;
-        let t_mean: f64 = nodes
+        *g = 1.0 / (1.0 - albedo[c] * coat_return(iface.eta[c], sigma_t[c] * thickness));
+    }
+}
+
+/// r = F̄(1/η) T̄²: the probability that diffuse light leaving a base comes back to it from the coat above, F̄ the
+/// coat interface's hemispherical reflectance seen from inside (optics::fresnel::diffuse_reflectance) and T̄ its
+/// slab's (`slab_transmittance`), crossed both ways.
+fn coat_return(eta: f64, tau: f64) -> f64 {
+    crate::optics::fresnel::diffuse_reflectance(1.0 / eta) * slab_transmittance(tau).powi(2)
+}
+
+/// T̄ = 2∫ e^{−τ/μ} μ dμ: the cosine-averaged transmittance of a slab of optical depth τ.
+fn slab_transmittance(tau: f64) -> f64 {
+    crate::quadrature::gauss_legendre(32)
+        .iter()
+        .map(|(x, w)| {
+            let mu = 0.5 * (x + 1.0);
+            0.5 * w * 2.0 * mu * if tau > 0.0 { (-tau / mu).exp() } else { 1.0 }
+        })
+        .sum()
+}
+
+/// Cosines at which a conductor base's inter-reflection term is tabulated: uniform in [0, 1].
+pub const INTERREFLECTION_NODES: usize = 8;
+
+/// The inter-reflections between a conductor base and the coat above it, summed (lamina's correction): of the light
+/// the base reflects, the part K that the coat sends back down (Fresnel reflection inside it, total internal
+/// reflection included) and its slab lets through, T̄², returns to the base, which a single pass leaves out. That light
+/// is taken as diffuse from then on: the base reflects Ā of it (its hemispherical albedo) and (1 − F̄) T̄ of that
+/// leaves, the coat returning r (`coat_return`), so X(μ) = A(μ) K(μ) T̄² Ā / (1 − Ā r) is what the base sends up
+/// again for light arriving at cosine μ, and E = (1 − F̄) T̄ of it leaves. A reciprocal term carries exactly that
+/// energy: f = T(μi) T(μo) / η² · g(μi′) g(μo′) / π with g = X √(E / Y), Y = 2∫ T(μo) X(μo′) μo dμo / η² (μo′ the
+/// view refracted into a smooth coat), g tabulated per channel at INTERREFLECTION_NODES cosines. A and K are
+/// single-scattering integrals over the base's visible normals (height-correlated Smith, four azimuths for an
+/// anisotropic base).
+pub fn add_conductor_interreflection(layers: &mut [SpLayer]) {
+    let n = layers.len();
+    if n < 2 {
+        return;
+    }
+    let (above, base) = layers.split_at_mut(n - 1);
+    let (SpLayer::Dielectric { iface: coat, thickness, sigma_t, .. }, SpLayer::Conductor { iface, diffuse }) =
+        (&above[n - 2], &mut base[0])
+    else {
+        return;
+    };
+    let (iface, nodes): (&Interface, _) = (iface, crate::quadrature::gauss_legendre(16));
+    let mut table = Vec::with_capacity(iface.eta.len() * INTERREFLECTION_NODES);
+    for (c, (eta, sigma_t)) in coat.eta.iter().zip(sigma_t).enumerate() {
+        let eta = *eta;
+        let albedo: f64 = nodes
             .iter()
             .map(|(x, w)| {
                 let mu = 0.5 * (x + 1.0);
-                0.5 * w * 2.0 * mu * if tau > 0.0 { (-tau / mu).exp() } else { 1.0 }
+                w * mu * base_reflection(iface, c, mu, 1.0 / eta).0
             })
             .sum();
-        let r = crate::optics::fresnel::diffuse_reflectance(1.0 / iface.eta[c]) * t_mean * t_mean;
-        *g = 1.0 / (1.0 - albedo[c] * r);
+        let tau = sigma_t * thickness;
+        let t_mean = slab_transmittance(tau);
+        let series = t_mean * t_mean * albedo / (1.0 - albedo * coat_return(eta, tau));
+        let x: Vec<f64> = (0..INTERREFLECTION_NODES)
+            .map(|j| {
+                let mu = (j as f64 / (INTERREFLECTION_NODES - 1) as f64).max(1e-3);
+                base_reflection(iface, c, mu, 1.0 / eta).1 * series
+            })
+            .collect();
+        let y: f64 = nodes
+            .iter()
+            .map(|(x_, w)| {
+                let mu = 0.5 * (x_ + 1.0);
+                let inside = (1.0 - (1.0 - mu * mu) / (eta * eta)).max(0.0).sqrt();
+                w * mu * crate::optics::fresnel::dielectric_transmittance(mu, eta) * node_lerp(&x, inside)
+            })
+            .sum::<f64>()
+            / (eta * eta);
+        let escape = (1.0 - crate::optics::fresnel::diffuse_reflectance(1.0 / eta)) * t_mean;
+        let scale = if y > 0.0 { (escape / y).sqrt() } else { 0.0 };
+        table.extend(x.iter().map(|v| v * scale));
     }
+    *diffuse = table;
+}
+
+/// A row of values at INTERREFLECTION_NODES cosines uniform in [0, 1], linear between them at `mu`.
+#[inline(always)]
+fn node_lerp(row: &[f64], mu: f64) -> f64 {
+    let x = mu.clamp(0.0, 1.0) * (INTERREFLECTION_NODES - 1) as f64;
+    let j = (x as usize).min(INTERREFLECTION_NODES - 2);
+    row[j] + (x - j as f64) * (row[j + 1] - row[j])
+}
+
+/// A conductor base's inter-reflection albedo g(μi) g(μo) for channel c between cosines `mu_i` and `mu_o` at the
+/// base (add_conductor_interreflection's table `diffuse`).
+#[inline(always)]
+pub fn interreflected(diffuse: &[f64], c: usize, mu_i: f64, mu_o: f64) -> f64 {
+    let row = &diffuse[c * INTERREFLECTION_NODES..][..INTERREFLECTION_NODES];
+    node_lerp(row, mu_i) * node_lerp(row, mu_o)
+}
+
+/// (A, A K): the single-scattering albedo of a conductor interface lit at cosine `mu`, and the part of it that a
+/// dielectric above of relative IOR `eta_up` (above / below) reflects back down, averaged over four azimuths.
+fn base_reflection(iface: &Interface, c: usize, mu: f64, eta_up: f64) -> (f64, f64) {
+    let (mut a, mut ak) = (0.0, 0.0);
+    let count = 4 * 64;
+    for k in 0..4 {
+        let phi = std::f64::consts::FRAC_PI_4 * k as f64;
+        let s = (1.0 - mu * mu).max(0.0).sqrt();
+        let v = DVec3::new(s * phi.cos(), s * phi.sin(), mu.max(1e-6));
+        for m in crate::tables::visible_normals(&iface.mf, v, 64) {
+            let w = crate::optics::reflect(v, m);
+            if w.z <= 0.0 {
+                continue;
+            }
+            let g = iface.mf.g2(G2Form::HeightCorrelated, v, w, m) / iface.mf.g1(v, m);
+            let f = crate::optics::fresnel::conductor(v.dot(m), iface.eta[c], iface.kappa[c]) * g;
+            a += f;
+            ak += f * crate::optics::fresnel::dielectric(w.z, eta_up);
+        }
+    }
+    (a / count as f64, ak / count as f64)
 }
 
 /// What a dielectric interface passes to the slab below for one channel: the light's transmission into the slab,
@@ -227,6 +341,9 @@ impl Walk {
         let mut layers = layers(stack, dist, opts.clamp_roughness);
         if opts.interreflection {
             add_interreflection(&mut layers);
+        }
+        if opts.conductor_interreflection {
+            add_conductor_interreflection(&mut layers);
         }
         let groups = channel_groups(&layers, stack.channels);
         Walk { layers, groups, g2: opts.g2, fresnel: opts.fresnel, eta2: opts.eta2 }
@@ -335,8 +452,16 @@ impl Walk {
                         }
                     }
                     match opaque {
-                        SpLayer::Conductor(iface) => {
-                            self.add_lobes(model, iface, state, weight, group.clone(), &tint, out)
+                        SpLayer::Conductor { iface, diffuse } => {
+                            self.add_lobes(model, iface, state, weight, group.clone(), &tint, out);
+                            if !diffuse.is_empty() {
+                                for (r, (wi, wo, _)) in state.iter().enumerate().filter(|(_, s)| s.2) {
+                                    for (c, g) in channels() {
+                                        let d = interreflected(diffuse, c, wi.z, wo.z);
+                                        out[r * k + c] += weight[r][g] * tint(c) * d * FRAC_1_PI;
+                                    }
+                                }
+                            }
                         }
                         SpLayer::Diffuse { albedo, sigma, gain } => {
                             for (r, (wi, wo, _)) in state.iter().enumerate().filter(|(_, s)| s.2) {
@@ -419,12 +544,15 @@ impl Walk {
                     out.push((mean(&|c| t[c] * (1.0 - k[c]) * albedo[c]), Proposal::Cosine));
                     (0..channels).for_each(|c| weight[c] = t[c] * k[c]);
                 }
-                SpLayer::Conductor(iface) => {
+                SpLayer::Conductor { iface, diffuse } => {
                     let f = |c: usize| weight[c] * iface.fresnel(self.fresnel, cos, c);
                     if !iface.mf.is_smooth() {
                         out.push((mean(&f), Proposal::Reflection(iface.mf)));
                     } else if smooth_above {
                         (0..channels).for_each(|c| mirror[c] += f(c));
+                    }
+                    if !diffuse.is_empty() {
+                        out.push((mean(&|c| weight[c] * interreflected(diffuse, c, cos, cos)), Proposal::Cosine));
                     }
                 }
                 SpLayer::Diffuse { albedo, gain, .. } => {

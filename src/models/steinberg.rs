@@ -16,10 +16,15 @@
 //! | `clamp_roughness` | bool   | `true`              | Elek's m₂ ≥ m₁; `false` for the published form              |
 //! | `eta2`            | bool   | `true`              | radiance compression 1/η²; `false` for the published form   |
 //! | `interreflection` | bool   | `false`             | lamina's correction: diffuse-base inter-reflections 1/(1 − ρ r) |
+//! | `conductor_interreflection` | bool | `false`   | lamina's correction: conductor-base inter-reflections       |
+//! | `microfacet_transmission` | bool | `false`     | lamina's correction: T (masking included) instead of t      |
+//! | `variant`         | string | `published`         | `improved`: both inter-reflection corrections               |
 //!
 //! The distribution is GGX (the tables are GGX). Sampling: the shared single-pass mixture (models/single_pass.rs).
 
-use super::options::{CLAMP_ROUGHNESS, ETA2, FRESNEL, G2, INTERREFLECTION};
+use super::options::{
+    variant, CLAMP_ROUGHNESS, CONDUCTOR_INTERREFLECTION, ETA2, FRESNEL, G2, INTERREFLECTION, MICROFACET_TRANSMISSION,
+};
 use super::single_pass::{refracted_up, Interface, Passage, SpLayer, Transport, Walk};
 use super::{InputSpec, Model, ModelInfo, OptionKind, OptionSpec, Options, Properties, Proposal};
 use crate::bsdf;
@@ -32,6 +37,8 @@ use glam::DVec3;
 pub struct Prepared {
     pub walk: Walk,
     pub fitted: bool,
+    /// lamina's correction: the passages transmit T (tables::steinberg) instead of t.
+    pub microfacet_transmission: bool,
     pub channels: usize,
 }
 
@@ -49,6 +56,9 @@ pub const INFO: ModelInfo = ModelInfo {
         CLAMP_ROUGHNESS,
         ETA2,
         INTERREFLECTION,
+        CONDUCTOR_INTERREFLECTION,
+        MICROFACET_TRANSMISSION,
+        variant("published: Steinberg's model (lamina's defaults); improved: with interreflection and conductor_interreflection"),
     ] as &[OptionSpec],
     inputs: &[] as &[InputSpec],
     properties: Properties { reciprocal: false, energy_conserving: false, anisotropic: true, spectral: true },
@@ -70,7 +80,12 @@ pub fn prepare(stack: &Stack, opts: &Options) -> Result<Prepared> {
         }
     }
     steinberg(); // generate or load the tables outside the parallel evaluation
-    Ok(Prepared { walk, fitted: opts.steinberg_fitted, channels: stack.channels })
+    Ok(Prepared {
+        walk,
+        fitted: opts.steinberg_fitted,
+        microfacet_transmission: opts.microfacet_transmission,
+        channels: stack.channels,
+    })
 }
 
 impl Transport for Prepared {
@@ -80,17 +95,19 @@ impl Transport for Prepared {
         bsdf::reflection_geometry(&iface.mf, self.walk.g2, wi, wo)
     }
 
-    /// t(wo) t(wi) and the mean refracted directions from the tables, at each direction's projected roughness.
+    /// t(wo) t(wi) (or T(wo) T(wi) with `microfacet_transmission`) and the mean refracted directions from the
+    /// tables, at each direction's projected roughness.
     #[inline(always)]
     fn passage(&self, iface: &Interface, wi: DVec3, wo: DVec3, c: usize) -> Option<Passage> {
         let table = steinberg();
         let lookup = |w: DVec3| {
             let alpha = if iface.mf.is_smooth() { 0.0 } else { iface.mf.projected_alpha(w) };
-            if self.fitted {
+            let (t, s) = if self.fitted {
                 table.fitted(w.z, alpha, iface.eta[c])
             } else {
                 table.tabulated(w.z, alpha, iface.eta[c])
-            }
+            };
+            (if self.microfacet_transmission { table.transmitted(w.z, alpha, iface.eta[c]) } else { t }, s)
         };
         let ((t_i, s_i), (t_o, s_o)) = (lookup(wi), lookup(wo));
         Some(Passage {

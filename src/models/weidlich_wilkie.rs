@@ -19,16 +19,21 @@
 //! | `clamp_roughness` | bool   | `true`     | Elek's m₂ ≥ m₁; `false` for the published form                       |
 //! | `eta2`            | bool   | `true`     | radiance compression 1/η²; `false` for the published form            |
 //! | `interreflection` | bool   | `false`    | lamina's correction: diffuse-base inter-reflections 1/(1 − ρ r)       |
+//! | `conductor_interreflection` | bool | `false` | lamina's correction: conductor-base inter-reflections      |
 //! | `extent`          | float  | 0.5        | patina: smoothstep centre over the `mask` values                     |
 //! | `transition`      | float  | 0.1        | patina: smoothstep half-width                                        |
 //! | `tint`            | floats | 1          | patina: tarnish of the base under the patina, per channel            |
+//! | `variant`         | string | `published`| `improved`: with `interreflection`                                   |
 //!
 //! Per-element inputs: `flake_normal` (..., 3) and `distance` (...) tilt the base normal to
 //! normalize(flake + max(distance, 1) ẑ) (car paint; a base tilted below the horizon reflects nothing); `mask`
 //! (...) in [0, 1] covers the surface with the stack's top layer, the patina (`Patina`). Sampling: the shared
 //! single-pass mixture (models/single_pass.rs).
 
-use super::options::{OptionKind, CLAMP_ROUGHNESS, DISTRIBUTIONS, ETA2, FRESNEL, G2_FORMS, INTERREFLECTION};
+use super::options::{
+    variant, OptionKind, CLAMP_ROUGHNESS, CONDUCTOR_INTERREFLECTION, DISTRIBUTIONS, ETA2, FRESNEL, G2_FORMS,
+    INTERREFLECTION,
+};
 use super::single_pass::{self, refracted_up, Interface, Passage, SpLayer, Transport, Walk};
 use super::{eval_rows, InputSpec, Inputs, Model, ModelInfo, OptionSpec, Options, Properties, Proposal, BLOCK};
 use crate::bsdf;
@@ -62,6 +67,7 @@ pub const INFO: ModelInfo = ModelInfo {
         CLAMP_ROUGHNESS,
         ETA2,
         INTERREFLECTION,
+        CONDUCTOR_INTERREFLECTION,
         OptionSpec {
             name: "extent",
             kind: OptionKind::Number { lo: 0.0, hi: 1.0, default: 0.5 },
@@ -77,6 +83,7 @@ pub const INFO: ModelInfo = ModelInfo {
             kind: OptionKind::Channels { lo: 0.0, hi: 1.0, default: 1.0 },
             doc: "patina (with mask): tarnish of the base under the patina, per channel, lerp(1, tint, coverage)",
         },
+        variant("published: Weidlich–Wilkie / Elek (lamina's defaults); improved: with interreflection"),
     ] as &[OptionSpec],
     inputs: &[
         InputSpec {
@@ -105,7 +112,7 @@ pub fn prepare(stack: &Stack, opts: &Options) -> Result<Prepared> {
     let precomputed = opts.elek_precomputed;
     if precomputed {
         for layer in &mut walk.layers {
-            if let SpLayer::Dielectric { iface, .. } | SpLayer::Conductor(iface) = layer {
+            if let SpLayer::Dielectric { iface, .. } | SpLayer::Conductor { iface, .. } = layer {
                 iface.precompute(opts.fresnel);
             }
         }
@@ -290,17 +297,21 @@ impl Patina {
                 albedo: albedo.clone(),
             };
             let base = match base {
-                SpLayer::Conductor(b) => SpLayer::Conductor(single_pass::Interface {
-                    mf: if self.clamp && !b.mf.is_smooth() {
-                        b.mf.with_alpha(b.mf.alpha_x.max(alpha.0), b.mf.alpha_y.max(alpha.1))
-                    } else {
-                        b.mf
+                SpLayer::Conductor { iface: b, diffuse } => SpLayer::Conductor {
+                    iface: single_pass::Interface {
+                        mf: if self.clamp && !b.mf.is_smooth() {
+                            b.mf.with_alpha(b.mf.alpha_x.max(alpha.0), b.mf.alpha_y.max(alpha.1))
+                        } else {
+                            b.mf
+                        },
+                        eta: rescale(&b.eta),
+                        kappa: rescale(&b.kappa),
+                        conductor: true,
+                        table: Vec::new(),
                     },
-                    eta: rescale(&b.eta),
-                    kappa: rescale(&b.kappa),
-                    conductor: true,
-                    table: Vec::new(),
-                }),
+                    // The full patina's inter-reflections, scaled by its coverage.
+                    diffuse: diffuse.iter().map(|d| w * d).collect(),
+                },
                 SpLayer::Diffuse { albedo, sigma, gain } => {
                     SpLayer::Diffuse { albedo: albedo.clone(), sigma: *sigma, gain: gain.clone() }
                 }

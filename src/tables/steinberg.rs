@@ -5,7 +5,11 @@
 //! - s(μ, α, η): the sine of the mean refracted direction, normalize(E_{m∼D_v}[refract(v, m)]) over the
 //!   refractions that go down (total internal reflections and refractions that leave the macro-surface are
 //!   discarded); it lies in the plane of incidence, opposite to v. When nothing refracts, s = 1 (and t ≈ 0);
-//! - p(μ, α, η): the fraction of visible normals at which v is totally internally reflected (η < 1 only).
+//! - p(μ, α, η): the fraction of visible normals at which v is totally internally reflected (η < 1 only);
+//! - T(μ, α, η): what a single-scattering rough interface actually transmits, E_{m∼D_v}[(1 − F(v·m, η)) G2/G1]
+//!   over the refractions that go down, with the height-correlated Smith G2 of v and the refracted direction
+//!   (Heitz 2014 eq. 99): t without the light that the microsurface masks on its way down, which R + T = 1 ignores
+//!   (lamina's `microfacet_transmission` correction).
 //!
 //! Tabulated form: μ uniform in [0, 1] (64 nodes), α uniform in [0, 1] (32), η log-uniform in [1/4, 4] (48),
 //! 512 stratified visible normals per (μ, α); trilinear interpolation of t, p and of s / sin θ (constant, 1/η, for a
@@ -29,8 +33,8 @@ pub const N_ETA: usize = 48;
 pub const ETA_MIN: f64 = 0.25;
 pub const ETA_MAX: f64 = 4.0;
 const QUADRATURE: usize = 512;
-/// Values per table node: t, s / sin θ, p.
-const STRIDE: usize = 3;
+/// Values per table node: t, s / sin θ, p, T.
+const STRIDE: usize = 4;
 const T_PARAMS: usize = 5;
 const S_PARAMS: usize = 4;
 
@@ -50,27 +54,34 @@ fn eta_coord(eta: f64) -> f64 {
     (eta / ETA_MIN).ln() / (ETA_MAX / ETA_MIN).ln()
 }
 
-/// t, s and p of one (μ, α, η) by quadrature over `normals` (the visible normals from v), or exactly for a smooth
-/// interface (Fresnel and Snell).
-fn integrate(v: DVec3, normals: &[DVec3], eta: f64) -> (f64, f64, f64) {
+/// t, s, p and T of one (μ, α, η) by quadrature over `normals` (the visible normals from v of `mf`), or exactly
+/// for a smooth interface (Fresnel and Snell).
+fn integrate(mf: &Microfacet, v: DVec3, normals: &[DVec3], eta: f64) -> [f64; STRIDE] {
     if normals.is_empty() {
         let sin_t = (1.0 - v.z * v.z).sqrt() / eta;
-        return (1.0 - fresnel::dielectric(v.z, eta), sin_t.min(1.0), (sin_t > 1.0) as u8 as f64);
+        let t = 1.0 - fresnel::dielectric(v.z, eta);
+        return [t, sin_t.min(1.0), (sin_t > 1.0) as u8 as f64, t];
     }
-    let (mut t, mut p) = (0.0, 0.0);
+    let (mut t, mut p, mut transmitted) = (0.0, 0.0, 0.0);
     let mut mean = DVec3::ZERO;
+    let lambda_v = mf.lambda(v);
     for &m in normals {
-        t += 1.0 - fresnel::dielectric(v.dot(m), eta);
+        let f_t = 1.0 - fresnel::dielectric(v.dot(m), eta);
+        t += f_t;
         match refract(v, m, eta) {
             None => p += 1.0,
-            Some(d) if d.z < 0.0 => mean += d,
+            Some(d) if d.z < 0.0 => {
+                mean += d;
+                // G2/G1 of the height-correlated Smith form: (1 + Λ(v)) / (1 + Λ(v) + Λ(d)).
+                transmitted += f_t * (1.0 + lambda_v) / (1.0 + lambda_v + mf.lambda(d));
+            }
             Some(_) => {}
         }
     }
     let n = normals.len() as f64;
     let len = mean.length();
     let s = if len > 0.0 { (mean.x.hypot(mean.y) / len).min(1.0) } else { 1.0 };
-    (t / n, s, p / n)
+    [t / n, s, p / n, transmitted / n]
 }
 
 /// Transmission model m((erf(aμ − b) + 1) + cμ) + d, parameters (a, b, c, d, m).
@@ -84,7 +95,7 @@ pub fn s_model(p: &[f64; S_PARAMS], mu: f64) -> f64 {
 }
 
 pub struct Steinberg {
-    /// [μ][α][η][t, s / sin θ, p]
+    /// [μ][α][η][t, s / sin θ, p, T]
     table: Grid<3, STRIDE>,
     /// [α][η][a, b, c, d, m, a₁, a₂, b₁, b₂]
     fits: Vec<f32>,
@@ -97,14 +108,11 @@ impl Steinberg {
             .flat_map_iter(|cell| {
                 let (mu, alpha) = (mu_at(cell / N_ALPHA), alpha_at(cell % N_ALPHA));
                 let v = DVec3::new((1.0 - mu * mu).sqrt(), 0.0, mu);
-                let normals = if alpha == 0.0 {
-                    vec![]
-                } else {
-                    visible_normals(&Microfacet::new(Distribution::Ggx, alpha, alpha, 0.0), v, QUADRATURE)
-                };
+                let mf = Microfacet::new(Distribution::Ggx, alpha, alpha, 0.0);
+                let normals = if alpha == 0.0 { vec![] } else { visible_normals(&mf, v, QUADRATURE) };
                 (0..N_ETA).flat_map(move |e| {
-                    let (t, s, p) = integrate(v, &normals, eta_at(e));
-                    [t as f32, (s / v.x) as f32, p as f32]
+                    let [t, s, p, transmitted] = integrate(&mf, v, &normals, eta_at(e));
+                    [t as f32, (s / v.x) as f32, p as f32, transmitted as f32]
                 })
             })
             .collect();
@@ -190,12 +198,12 @@ impl Steinberg {
         fits
     }
 
-    /// Trilinear interpolation in (μ, α, log η) of the node values [t, s / sin θ, p].
+    /// Trilinear interpolation in (μ, α, log η) of the node values [t, s / sin θ, p, T].
     fn interpolate(&self, mu: f64, alpha: f64, eta: f64) -> [f64; STRIDE] {
         self.table.lookup([mu, alpha, eta_coord(eta)])
     }
 
-    /// The table's node values [μ][α][η][t, s / sin θ, p] and the fits' [α][η][a, b, c, d, m, a₁, a₂, b₁, b₂], as
+    /// The table's node values [μ][α][η][t, s / sin θ, p, T] and the fits' [α][η][a, b, c, d, m, a₁, a₂, b₁, b₂], as
     /// the GPU uploads them (shaders/steinberg.wgsl).
     pub fn gpu_data(&self) -> (&[f32], &[f32]) {
         (self.table.data(), &self.fits)
@@ -203,8 +211,13 @@ impl Steinberg {
 
     /// (t, s) from the table (s through s / sin θ).
     pub fn tabulated(&self, mu: f64, alpha: f64, eta: f64) -> (f64, f64) {
-        let [t, s, _] = self.interpolate(mu, alpha, eta);
+        let [t, s, ..] = self.interpolate(mu, alpha, eta);
         (t, (s * (1.0 - mu * mu).max(0.0).sqrt()).min(1.0))
+    }
+
+    /// T: the energy a single-scattering rough interface transmits, with the masking of the refracted light.
+    pub fn transmitted(&self, mu: f64, alpha: f64, eta: f64) -> f64 {
+        self.interpolate(mu, alpha, eta)[3].clamp(0.0, 1.0)
     }
 
     /// p: the fraction of the visible normals at which the direction is totally internally reflected.
@@ -256,6 +269,7 @@ mod tests {
         let (mu, eta) = (mu_at(40), eta_at(30));
         let (tt, s) = t.tabulated(mu, 0.0, eta);
         assert!((tt - (1.0 - fresnel::dielectric(mu, eta))).abs() < 1e-6);
+        assert!((t.transmitted(mu, 0.0, eta) - tt).abs() < 1e-6);
         assert!((s - (1.0 - mu * mu).sqrt() / eta).abs() < 1e-6);
     }
 
@@ -271,20 +285,54 @@ mod tests {
         assert_eq!(t.tir_fraction(0.3, 0.6, 1.5), 0.0);
         let (mu, alpha, eta) = (0.8, 0.45, 0.7);
         let v = DVec3::new((1.0f64 - mu * mu).sqrt(), 0.0, mu);
-        let normals = visible_normals(&Microfacet::new(Distribution::Ggx, alpha, alpha, 0.0), v, 65536);
-        let p_ref = integrate(v, &normals, eta).2;
+        let mf = Microfacet::new(Distribution::Ggx, alpha, alpha, 0.0);
+        let p_ref = integrate(&mf, v, &visible_normals(&mf, v, 65536), eta)[2];
         let p = t.tir_fraction(mu, alpha, eta);
         assert!(p_ref > 0.05 && (p - p_ref).abs() < 5e-3, "{p} {p_ref}");
     }
 
     #[test]
     fn matches_a_fine_quadrature_between_nodes() {
-        // η = 1.5, α = 0.5, μ = 0.5: t and s from 65536 visible normals.
+        // η = 1.5, α = 0.5, μ = 0.5: t, s and T from 65536 visible normals.
         let (mu, alpha, eta) = (0.5, 0.5, 1.5);
         let v = DVec3::new((1.0f64 - mu * mu).sqrt(), 0.0, mu);
-        let normals = visible_normals(&Microfacet::new(Distribution::Ggx, alpha, alpha, 0.0), v, 65536);
-        let (t_ref, s_ref, _) = integrate(v, &normals, eta);
+        let mf = Microfacet::new(Distribution::Ggx, alpha, alpha, 0.0);
+        let [t_ref, s_ref, _, transmitted_ref] = integrate(&mf, v, &visible_normals(&mf, v, 65536), eta);
         let (t, s) = steinberg().tabulated(mu, alpha, eta);
         assert!((t - t_ref).abs() < 3e-3 && (s - s_ref).abs() < 3e-3, "{t} {t_ref} {s} {s_ref}");
+        let transmitted = steinberg().transmitted(mu, alpha, eta);
+        assert!((transmitted - transmitted_ref).abs() < 3e-3, "{transmitted} {transmitted_ref}");
+        // Masking keeps some of what the Fresnel term lets through.
+        assert!(transmitted_ref < t_ref - 0.02, "{transmitted_ref} {t_ref}");
+    }
+
+    #[test]
+    fn transmitted_energy_is_the_integral_of_the_rough_dielectric_btdf() {
+        // T against ∫ f_t(v, wo) |cos θo| dωo of Walter et al.'s BTDF (bsdf::rough_dielectric), by Gauss–Legendre
+        // in cos θo and the midpoint rule in φo (the lobe is smooth at these roughnesses).
+        for (mu, alpha, eta) in [(0.5, 0.5, 1.5), (0.9, 0.3, 1.33), (0.3, 0.8, 2.0)] {
+            let v = DVec3::new((1.0f64 - mu * mu).sqrt(), 0.0, mu);
+            let mf = Microfacet::new(Distribution::Ggx, alpha, alpha, 0.0);
+            let n_phi = 512;
+            let mut integral = 0.0;
+            for (x, w) in crate::quadrature::gauss_legendre(256) {
+                let c = 0.5 * (x + 1.0);
+                let s = (1.0 - c * c).sqrt();
+                for j in 0..n_phi {
+                    let phi = (j as f64 + 0.5) / n_phi as f64 * std::f64::consts::TAU;
+                    let wo = DVec3::new(s * phi.cos(), s * phi.sin(), -c);
+                    let f = crate::bsdf::rough_dielectric(
+                        &mf,
+                        crate::optics::distribution::G2Form::HeightCorrelated,
+                        eta,
+                        v,
+                        wo,
+                    );
+                    integral += 0.5 * w * std::f64::consts::TAU / n_phi as f64 * f * c;
+                }
+            }
+            let t = steinberg().transmitted(mu, alpha, eta);
+            assert!((t - integral).abs() < 4e-3, "μ {mu} α {alpha} η {eta}: table {t}, integral {integral}");
+        }
     }
 }

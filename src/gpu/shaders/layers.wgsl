@@ -4,11 +4,12 @@
 // `params` (channels, fresnel, fresnel_samples, layers_base).
 
 // The layers as gpu::single_pass_layers writes them: per layer a header of HEADER values, then per channel
-// PER_CHANNEL values and Elek's Fresnel table, (F, 1 − F) at each of params.fresnel_samples nodes (none without).
+// PER_CHANNEL values (η, κ, σt, albedo, gain, and a conductor base's inter-reflection albedo at 8 cosines) and Elek's
+// Fresnel table, (F, 1 − F) at each of params.fresnel_samples nodes (none without).
 @group(0) @binding(1) var<storage, read> layers: array<f32>;
 
 const HEADER: u32 = 9u;
-const PER_CHANNEL: u32 = 5u;
+const PER_CHANNEL: u32 = 13u;  // 5 values and INTERREFLECTION_NODES
 const DIELECTRIC: u32 = 0u;
 const CONDUCTOR: u32 = 1u;
 
@@ -33,6 +34,7 @@ const KAPPA: u32 = 1u;
 const SIGMA_T: u32 = 2u;
 const ALBEDO: u32 = 3u;
 const GAIN: u32 = 4u;
+const INTERREFLECTED: u32 = 5u;
 
 fn channel_stride() -> u32 {
     return PER_CHANNEL + 2u * params.fresnel_samples;
@@ -40,6 +42,20 @@ fn channel_stride() -> u32 {
 
 fn value(layer: Layer, ch: u32, which: u32) -> f32 {
     return layers[layer.at + ch * channel_stride() + which];
+}
+
+// single_pass::node_lerp of a conductor base's inter-reflection table g (0 without the correction): linear between its
+// 8 nodes.
+fn interreflected_at(layer: Layer, ch: u32, mu: f32) -> f32 {
+    let x = clamp(mu, 0.0, 1.0) * 7.0;
+    let j = min(u32(x), 6u);
+    let at = layer.at + ch * channel_stride() + INTERREFLECTED + j;
+    return layers[at] + (x - f32(j)) * (layers[at + 1u] - layers[at]);
+}
+
+// single_pass::interreflected: g(μi) g(μo).
+fn interreflected(layer: Layer, ch: u32, mu_i: f32, mu_o: f32) -> f32 {
+    return interreflected_at(layer, ch, mu_i) * interreflected_at(layer, ch, mu_o);
 }
 
 // single_pass::refracted_up: w refracted into a slab and flipped to point up, same azimuth, sine sin_t.

@@ -33,6 +33,8 @@ fn walk(wi_in: vec3<f32>, wo_in: vec3<f32>, ch: u32) -> f32 {
         let geo = lobe(layer, wi, wo);
         f += weight * geo.x * interface_fresnel(layer, geo.y, ch);
         if layer.kind == CONDUCTOR {
+            // The inter-reflections with the coat above (conductor_interreflection; 0 without).
+            f += weight * interreflected(layer, ch, wi.z, wo.z) * FRAC_1_PI;
             break;
         }
         let p = passage(layer, wi, wo, ch);
@@ -102,7 +104,9 @@ fn proposals(wo: vec3<f32>) {
             } else if layer.kind == CONDUCTOR {
                 if layer.mf.smooth_ == 0u {
                     add_term(slot, REFLECTION, share * weight * interface_fresnel(layer, cos, ch), layer.mf);
+                    slot += 1u;
                 }
+                add_term(slot, COSINE, share * weight * interreflected(layer, ch, cos, cos), cosine_lobe());
             } else {
                 add_term(slot, COSINE, share * weight * value(layer, ch, ALBEDO) * value(layer, ch, GAIN), cosine_lobe());
             }

@@ -18,7 +18,7 @@ struct Params {
     eta_max: f32,
     fresnel_samples: u32,  // 0: no Fresnel tables
     layers_base: u32,      // where the stack's layers start in `layers`
-    pad1: u32,
+    microfacet_transmission: u32,
     pad2: u32,
 }
 
@@ -26,14 +26,14 @@ struct Params {
 // `params`, the current thread's.
 @group(0) @binding(0) var<storage, read> stack_params: array<Params>;
 var<private> params: Params;
-// [μ][α][η][t, s / sin θ, p]
+// [μ][α][η][t, s / sin θ, p, T]
 @group(0) @binding(2) var<storage, read> table: array<f32>;
 // [α][η][a, b, c, d, m, a₁, a₂, b₁, b₂]
 @group(0) @binding(3) var<storage, read> fits: array<f32>;
 @group(0) @binding(4) var<storage, read> pairs: array<f32>;
 @group(0) @binding(5) var<storage, read_write> out: array<f32>;
 
-const STRIDE: u32 = 3u;
+const STRIDE: u32 = 4u;
 const FIT: u32 = 9u;
 
 // tables::steinberg::eta_coord: η's coordinate on the table's logarithmic axis.
@@ -51,6 +51,17 @@ fn tabulated(mu: f32, alpha: f32, eta: f32) -> vec2<f32> {
         ts += corner_weight(g, k) * vec2<f32>(table[i], table[i + 1u]);
     }
     return vec2<f32>(ts.x, min(ts.y * sqrt(max(1.0 - mu * mu, 0.0)), 1.0));
+}
+
+// Steinberg::transmitted: T trilinear in (μ, α, log η), clamped to [0, 1].
+fn transmitted(mu: f32, alpha: f32, eta: f32) -> f32 {
+    let dims = vec4<u32>(params.n_mu, params.n_alpha, params.n_eta, 1u);
+    let g = grid_point(vec4<f32>(mu, alpha, eta_coord(eta), 0.0), dims, 3u);
+    var t = 0.0;
+    for (var k = 0u; k < 8u; k++) {
+        t += corner_weight(g, k) * table[corner_index(g, k) * STRIDE + 3u];
+    }
+    return clamp(t, 0.0, 1.0);
 }
 
 // tables::steinberg::t_model: m((erf(aμ − b) + 1) + cμ) + d, and s_model: a₁e^{a₂μ} + b₁e^{b₂μ}, of fit record k.
@@ -76,16 +87,22 @@ fn lobe(layer: Layer, wi: vec3<f32>, wo: vec3<f32>) -> vec2<f32> {
     return reflection_geometry(layer.mf, params.g2, wi, wo);
 }
 
-// Prepared::passage's lookup: (t, s) of direction w at its projected roughness.
+// Prepared::passage's lookup: (t, s) of direction w at its projected roughness, T for t with microfacet_transmission.
 fn transmission(mf: Microfacet, w: vec3<f32>, eta: f32) -> vec2<f32> {
     var alpha = 0.0;
     if mf.smooth_ == 0u {
         alpha = mf_projected_alpha(mf, w);
     }
+    var ts: vec2<f32>;
     if params.fitted != 0u {
-        return fitted(w.z, alpha, eta);
+        ts = fitted(w.z, alpha, eta);
+    } else {
+        ts = tabulated(w.z, alpha, eta);
     }
-    return tabulated(w.z, alpha, eta);
+    if params.microfacet_transmission != 0u {
+        ts.x = transmitted(w.z, alpha, eta);
+    }
+    return ts;
 }
 
 // Prepared::passage: t(wo) t(wi) and the mean refracted directions.

@@ -18,6 +18,9 @@ pub struct Variant {
     pub fresnel_energy: bool,
     /// The reference code's TIR step before each interface below the first.
     pub tir: Tir,
+    /// lamina's correction: a rough dielectric transmits T (tables::steinberg, the single-scattering microfacet
+    /// transmission with its masking) instead of 1 − R: R + T < 1, as for the microsurface itself.
+    pub microfacet_transmission: bool,
 }
 
 /// Belcour's optional TIR step (reference code, "decoupling approximation"): before interface i > 0, a factor T of
@@ -226,7 +229,14 @@ impl Prepared {
                             }
                         })
                         .collect();
-                    let t12: Vec<f64> = if transmissive { r12.iter().map(|r| 1.0 - r).collect() } else { vec![0.0; c] };
+                    let t12: Vec<f64> = if !transmissive {
+                        vec![0.0; c]
+                    } else if self.variant.microfacet_transmission && temp_alpha > 0.0 {
+                        let table = tables::steinberg::steinberg();
+                        eta.iter().map(|e| table.transmitted(cti, temp_alpha, *e)).collect()
+                    } else {
+                        r12.iter().map(|r| 1.0 - r).collect()
+                    };
                     let (r21, t21) =
                         if transmissive { (r12.clone(), t12.clone()) } else { (vec![0.0; c], vec![0.0; c]) };
                     let st = StepStats { r12, t12, r21, t21, s_r12, s_t12, s_r21: s_r12, s_t21, j12, j21 };

@@ -29,6 +29,8 @@
 //! | `energy`    | string | `fgd`               | energies from FGD or the exact `fresnel` at the mean cosine          |
 //! | `tir`       | string | `off`               | the code's TIR step: `off`, `transmittance` or `fraction`            |
 //! | `tabulated` | bool   | `true`              | interpolate the adding-doubling from a table built once per stack    |
+//! | `microfacet_transmission` | bool | `false` | lamina's correction: T of a rough interface from lamina's table, not 1 − R |
+//! | `variant`   | string | `published`         | `improved`: lamina's corrections (`microfacet_transmission`)         |
 //!
 //! Layout: `cov.rs` (covariances, roughness maps), `adding.rs` (the adding-doubling), `table.rs` (its table and
 //! the block evaluator). Sampling: each rough lobe by its GGX visible normals, weighted by its energy, and the
@@ -41,7 +43,7 @@ mod table;
 pub use adding::{Tir, Variant};
 pub use cov::{alpha_from_variance, hg_variance, variance_from_alpha, Cov, Lobe};
 
-use super::options::{choice, flag, G2};
+use super::options::{choice, flag, variant, G2, MICROFACET_TRANSMISSION};
 use super::{InputSpec, Inputs, Model, ModelInfo, OptionSpec, Options, Properties, Proposal};
 use crate::bsdf;
 use crate::error::{value_error, Result};
@@ -63,6 +65,8 @@ pub const INFO: ModelInfo = ModelInfo {
         choice("energy", &["fgd", "fresnel"], "fgd", "lobe energies from the FGD table or the exact Fresnel at the mean cosine"),
         choice("tir", &["off", "transmittance", "fraction"], "off", "the reference code's TIR step: off, its table (repeats the Fresnel factor) or the totally reflected fraction"),
         flag("tabulated", true, "interpolate the adding-doubling from a table over the viewing direction, built once per stack"),
+        MICROFACET_TRANSMISSION,
+        variant("published: Belcour 2018; improved: with lamina's correction microfacet_transmission"),
     ] as &[OptionSpec],
     inputs: &[] as &[InputSpec],
     properties: Properties { reciprocal: false, energy_conserving: false, anisotropic: true, spectral: true },
@@ -120,7 +124,7 @@ pub fn prepare(stack: &Stack, opts: &Options) -> Result<Prepared> {
         table: None,
         g2: opts.g2,
         symmetric: opts.symmetric,
-        variant: opts.belcour,
+        variant: Variant { microfacet_transmission: opts.microfacet_transmission, ..opts.belcour },
         channels: stack.channels,
     };
     if let Some(mut d) = diffuse {
