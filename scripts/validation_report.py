@@ -692,6 +692,13 @@ def corrections_section():
         "- `interreflection` (steinberg, weidlich_wilkie): the geometric series 1/(1 − ρ r) of inter-reflections "
         "between a diffuse base and the coat above it, r = F̄(1/η) T̄² (single_pass.rs, `add_interreflection`); exact "
         "for a smooth clear coat over Lambert (tests/test_single_pass.py).",
+        "- `conductor_interreflection` (steinberg, weidlich_wilkie): the inter-reflections between a conductor base "
+        "and the coat above it (single_pass.rs, `add_conductor_interreflection`): of what the base reflects, the part "
+        "K(μ) the coat sends back down (Fresnel inside it, total internal reflection included) returns and is taken "
+        "as diffuse from then on, reflected Ā by the base and let out by the coat, as a reciprocal term "
+        "T(μi) T(μo) g(μi′) g(μo′) / (η² π) whose light albedo is exactly that returned energy "
+        "(tests/test_single_pass.py: reciprocal, albedo < 1 on bright metals, gold-clearcoat's albedo error "
+        "cut by more than half).",
         "- `microfacet_transmission` (belcour, steinberg): a rough dielectric transmits T(μ, α, η) = "
         "E_{m∼D_v}[(1 − F) G2/G1], what a single-scattering microsurface transmits with the masking of the refracted "
         "light (tables/steinberg.rs, checked against the integral of Walter et al.'s BTDF), instead of 1 − R "
