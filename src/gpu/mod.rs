@@ -6,7 +6,7 @@
 //! Models on the GPU: `microfacet`, `steinberg`, `weidlich_wilkie` and `albedo_scaling` (every option; the last
 //! three read shaders/layers.wgsl's layers, the single-pass models walk them in shaders/single_pass.wgsl) and
 //! `belcour` (tabulated, every other option). Per-element inputs (car-paint flakes, the patina mask) run on the CPU
-//! only. A model is prepared once per stack and options and kept, with its arrays on the device (`upload`); the tables
+//! only. A model is prepared once per stack and options and kept, with its arrays on the device (`cached_kernel`); the tables
 //! that every stack shares are uploaded once (`table`). Inputs of any length are split into dispatches of at most
 //! CHUNK pairs. A batch of stacks renders in one dispatch (`batched`). The renderer (`render`, shaders/scene.wgsl and render.wgsl) renders stacks,
 //! and Oat 2006's gooey layers (`oat`, shaders/oat.wgsl), on the sphere, the plane and meshes (shaders/mesh.wgsl,
@@ -587,10 +587,17 @@ fn unsupported(model: &str) -> Error {
     Error::Value(format!("model {model:?} has no GPU implementation yet (GPU models: {names:?}); use device='cpu'"))
 }
 
-/// A kernel with its arrays and tables on the device, as `batched` binds them for it alone.
+/// A prepared kernel, and its arrays and tables on the device as `batched` binds them for it alone: uploaded on the
+/// first per-element query and kept (a render batches the kernels of its stacks instead).
 struct Uploaded {
     kernel: Kernel,
-    arrays: Vec<wgpu::Buffer>,
+    arrays: OnceLock<Vec<wgpu::Buffer>>,
+}
+
+impl Uploaded {
+    fn arrays(&self, gpu: &Gpu) -> &[wgpu::Buffer] {
+        self.arrays.get_or_init(|| batched(gpu, &[&self.kernel]).1)
+    }
 }
 
 /// One model's kernels for stacks that one dispatch serves: their `Params`, one after the other, each holding its
@@ -633,9 +640,10 @@ const STORAGE: wgpu::BufferUsages = wgpu::BufferUsages::STORAGE;
 
 const CACHED: usize = 16;
 
-/// `model` prepared for `stack` and `opts` on the device: kept for the next calls with equal arguments (as the CPU
-/// keeps its prepared models), so that tables are built and uploaded once.
-fn upload(gpu: &Gpu, model: &str, stack: &Stack, opts: &Options) -> Result<Arc<Uploaded>> {
+/// `model` prepared for `stack` and `opts` for the GPU: kept for the next calls with equal arguments (as the CPU
+/// keeps its prepared models), so that its tables are built once and, for per-element queries, uploaded once
+/// (`Uploaded::arrays`).
+fn cached_kernel(model: &str, stack: &Stack, opts: &Options) -> Result<Arc<Uploaded>> {
     static CACHE: Mutex<Vec<(String, Arc<Uploaded>)>> = Mutex::new(Vec::new());
     // Debug prints every f64 in its shortest round-trip form: equal keys mean equal arguments (models::prepare).
     let key = format!("{model}|{stack:?}|{opts:?}");
@@ -646,9 +654,7 @@ fn upload(gpu: &Gpu, model: &str, stack: &Stack, opts: &Options) -> Result<Arc<U
         cache.insert(0, entry);
         return Ok(found);
     }
-    let kernel = kernel(model, stack, opts)?;
-    let (_, arrays) = batched(gpu, &[&kernel]);
-    let up = Arc::new(Uploaded { kernel, arrays });
+    let up = Arc::new(Uploaded { kernel: kernel(model, stack, opts)?, arrays: OnceLock::new() });
     cache.insert(0, (key, up.clone()));
     cache.truncate(CACHED);
     Ok(up)
@@ -664,30 +670,20 @@ struct Batch {
 /// Uploads the pairs (float32 rows of two vectors: wi and wo, or wo and u) of one dispatch of `up`'s kernel for
 /// `query`.
 fn batch(gpu: &Gpu, up: &Uploaded, pipeline: &wgpu::ComputePipeline, query: Query, pairs: &[f32]) -> Batch {
-    let (device, kernel) = (&gpu.device, &up.kernel);
+    let kernel = &up.kernel;
     let m = pairs.len() / 6;
     let mut words = kernel.words.clone();
     words[kernel.count_word] = m as u32;
-    let init = |label, contents: &[u8], usage| {
-        device.create_buffer_init(&wgpu::util::BufferInitDescriptor { label: Some(label), contents, usage })
-    };
-    let params = init("params", bytemuck::cast_slice(&words), STORAGE);
-    let pair_buf = init("pairs", bytemuck::cast_slice(pairs), wgpu::BufferUsages::STORAGE);
-    let out = device.create_buffer(&wgpu::BufferDescriptor {
-        label: Some("f"),
-        size: (4 * m * query.width(kernel.channels)) as u64,
-        usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
-        mapped_at_creation: false,
-    });
-    let buffers: Vec<&wgpu::Buffer> = std::iter::once(&params).chain(&up.arrays).chain([&pair_buf, &out]).collect();
-    let entries: Vec<wgpu::BindGroupEntry> = buffers
-        .iter()
+    let params = init(gpu, "params", bytemuck::cast_slice(&words), STORAGE);
+    let pair_buf = init(gpu, "pairs", bytemuck::cast_slice(pairs), STORAGE);
+    let out = buffer(gpu, "f", (4 * m * query.width(kernel.channels)) as u64, STORAGE | wgpu::BufferUsages::COPY_SRC);
+    let resources: Vec<(u32, Res)> = std::iter::once(&params)
+        .chain(up.arrays(gpu))
+        .chain([&pair_buf, &out])
         .enumerate()
-        .map(|(k, b)| wgpu::BindGroupEntry { binding: k as u32, resource: b.as_entire_binding() })
+        .map(|(k, b)| (k as u32, Res::Buffer(b)))
         .collect();
-    let layout = pipeline.get_bind_group_layout(0);
-    let bind = device.create_bind_group(&wgpu::BindGroupDescriptor { label: None, layout: &layout, entries: &entries });
-    Batch { bind, out, pairs: m }
+    Batch { bind: group(gpu, pipeline, 0, &resources), out, pairs: m }
 }
 
 /// Submits one dispatch of a batch, then (with `read`) the copy of its output into `read`.
@@ -735,11 +731,11 @@ fn prepared(
         return value_error("pairs must be float32 (n, 6) rows of two vectors");
     }
     let gpu = gpu()?;
-    let up = upload(gpu, model, stack, opts)?;
+    let up = cached_kernel(model, stack, opts)?;
     let k = MODELS.iter().position(|m| m.0 == up.kernel.model).expect("a listed model");
     let limit = gpu.device.limits().max_storage_buffer_binding_size as usize;
     let chunk = CHUNK.min((limit / (4 * query.width(up.kernel.channels).max(6))).max(64));
-    let pipeline = gpu.query_pipeline(k, query, up.arrays.len());
+    let pipeline = gpu.query_pipeline(k, query, up.arrays(gpu).len());
     Ok((gpu, up, pipeline, chunk))
 }
 
@@ -759,18 +755,9 @@ fn run_scoped(query: Query, model: &str, stack: &Stack, opts: &Options, pairs: &
     let mut out = vec![0f32; pairs.len() / 6 * c];
     for (rows, dst) in pairs.chunks(6 * chunk).zip(out.chunks_mut(chunk * c)) {
         let b = batch(gpu, &up, pipeline, query, rows);
-        let read = gpu.device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("readback"),
-            size: b.out.size(),
-            usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
-            mapped_at_creation: false,
-        });
+        let read = buffer(gpu, "readback", b.out.size(), wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST);
         dispatch_batch(gpu, pipeline, &b, Some(&read));
-        let slice = read.slice(..);
-        slice.map_async(wgpu::MapMode::Read, |_| {});
-        wait(gpu)?;
-        let view = slice.get_mapped_range().map_err(|e| Error::Value(format!("GPU: {e}")))?;
-        dst.copy_from_slice(bytemuck::cast_slice(&view));
+        dst.copy_from_slice(&read_back(gpu, &read)?);
     }
     Ok(out)
 }
@@ -951,6 +938,11 @@ fn rasterize(
 /// Submits `encoder` and reads the float32 buffer `read` back.
 fn finish(gpu: &Gpu, encoder: wgpu::CommandEncoder, read: &wgpu::Buffer) -> Result<Vec<f32>> {
     gpu.queue.submit([encoder.finish()]);
+    read_back(gpu, read)
+}
+
+/// The float32 values of the mappable buffer `read`, once the submitted work has written them.
+fn read_back(gpu: &Gpu, read: &wgpu::Buffer) -> Result<Vec<f32>> {
     let slice = read.slice(..);
     slice.map_async(wgpu::MapMode::Read, |_| {});
     wait(gpu)?;
@@ -971,7 +963,7 @@ fn render_scoped(gpu: &'static Gpu, model: &str, stacks: &[Stack], opts: &Option
     if scene.env.is_some() {
         stacks.iter().try_for_each(fits_the_mixture)?;
     }
-    let ups = stacks.iter().map(|s| upload(gpu, model, s, opts)).collect::<Result<Vec<_>>>()?;
+    let ups = stacks.iter().map(|s| cached_kernel(model, s, opts)).collect::<Result<Vec<_>>>()?;
     if ups.iter().any(|u| u.kernel.channels != 3) {
         return value_error("render takes RGB stacks (3 channels)");
     }
