@@ -198,25 +198,26 @@ pub fn add_conductor_interreflection(layers: &mut [SpLayer]) {
         return;
     };
     let (iface, nodes): (&Interface, _) = (iface, crate::quadrature::gauss_legendre(16));
+    let eta_up: Vec<f64> = coat.eta.iter().map(|e| 1.0 / e).collect();
+    // Ā = ∫ A(μ) 2μ dμ per channel, and A K per channel at the table's nodes.
+    let mut albedos = vec![0.0; eta_up.len()];
+    for (x, w) in &nodes {
+        let mu = 0.5 * (x + 1.0);
+        for (albedo, (a, _)) in albedos.iter_mut().zip(base_reflection(iface, mu, &eta_up)) {
+            *albedo += w * mu * a;
+        }
+    }
+    let at_nodes: Vec<Vec<(f64, f64)>> = (0..INTERREFLECTION_NODES)
+        .map(|j| base_reflection(iface, (j as f64 / (INTERREFLECTION_NODES - 1) as f64).max(1e-3), &eta_up))
+        .collect();
     let mut table = Vec::with_capacity(iface.eta.len() * INTERREFLECTION_NODES);
     for (c, (eta, sigma_t)) in coat.eta.iter().zip(sigma_t).enumerate() {
         let eta = *eta;
-        let albedo: f64 = nodes
-            .iter()
-            .map(|(x, w)| {
-                let mu = 0.5 * (x + 1.0);
-                w * mu * base_reflection(iface, c, mu, 1.0 / eta).0
-            })
-            .sum();
+        let albedo = albedos[c];
         let tau = sigma_t * thickness;
         let t_mean = slab_transmittance(tau);
         let series = t_mean * t_mean * albedo / (1.0 - albedo * coat_return(eta, tau));
-        let x: Vec<f64> = (0..INTERREFLECTION_NODES)
-            .map(|j| {
-                let mu = (j as f64 / (INTERREFLECTION_NODES - 1) as f64).max(1e-3);
-                base_reflection(iface, c, mu, 1.0 / eta).1 * series
-            })
-            .collect();
+        let x: Vec<f64> = at_nodes.iter().map(|r| r[c].1 * series).collect();
         let y: f64 = nodes
             .iter()
             .map(|(x_, w)| {
@@ -249,10 +250,11 @@ pub fn interreflected(diffuse: &[f64], c: usize, mu_i: f64, mu_o: f64) -> f64 {
     node_lerp(row, mu_i) * node_lerp(row, mu_o)
 }
 
-/// (A, A K): the single-scattering albedo of a conductor interface lit at cosine `mu`, and the part of it that a
-/// dielectric above of relative IOR `eta_up` (above / below) reflects back down, averaged over four azimuths.
-fn base_reflection(iface: &Interface, c: usize, mu: f64, eta_up: f64) -> (f64, f64) {
-    let (mut a, mut ak) = (0.0, 0.0);
+/// (A, A K) per channel: the single-scattering albedo of a conductor interface lit at cosine `mu`, and the part of it
+/// that a dielectric above of relative IOR `eta_up[c]` (above / below) reflects back down, averaged over four
+/// azimuths. The visible normals and their masking are shared by every channel.
+fn base_reflection(iface: &Interface, mu: f64, eta_up: &[f64]) -> Vec<(f64, f64)> {
+    let mut out = vec![(0.0, 0.0); eta_up.len()];
     let count = 4 * 64;
     for k in 0..4 {
         let phi = std::f64::consts::FRAC_PI_4 * k as f64;
@@ -264,12 +266,14 @@ fn base_reflection(iface: &Interface, c: usize, mu: f64, eta_up: f64) -> (f64, f
                 continue;
             }
             let g = iface.mf.g2(G2Form::HeightCorrelated, v, w, m) / iface.mf.g1(v, m);
-            let f = crate::optics::fresnel::conductor(v.dot(m), iface.eta[c], iface.kappa[c]) * g;
-            a += f;
-            ak += f * crate::optics::fresnel::dielectric(w.z, eta_up);
+            for (c, (a, ak)) in out.iter_mut().enumerate() {
+                let f = crate::optics::fresnel::conductor(v.dot(m), iface.eta[c], iface.kappa[c]) * g;
+                *a += f;
+                *ak += f * crate::optics::fresnel::dielectric(w.z, eta_up[c]);
+            }
         }
     }
-    (a / count as f64, ak / count as f64)
+    out.iter().map(|(a, ak)| (a / count as f64, ak / count as f64)).collect()
 }
 
 /// What a dielectric interface passes to the slab below for one channel: the light's transmission into the slab,

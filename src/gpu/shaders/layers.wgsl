@@ -4,12 +4,13 @@
 // `params` (channels, fresnel, fresnel_samples, layers_base).
 
 // The layers as gpu::single_pass_layers writes them: per layer a header of HEADER values, then per channel
-// PER_CHANNEL values (η, κ, σt, albedo, gain, and a conductor base's inter-reflection albedo at 8 cosines) and Elek's
-// Fresnel table, (F, 1 − F) at each of params.fresnel_samples nodes (none without).
+// PER_CHANNEL values (η, κ, σt, albedo, gain, and a conductor base's inter-reflection albedo at INTERREFLECTION_NODES
+// cosines) and Elek's Fresnel table, (F, 1 − F) at each of params.fresnel_samples nodes (none without).
 @group(0) @binding(1) var<storage, read> layers: array<f32>;
 
 const HEADER: u32 = 9u;
-const PER_CHANNEL: u32 = 13u;  // 5 values and INTERREFLECTION_NODES
+const INTERREFLECTION_NODES: u32 = 8u;  // single_pass::INTERREFLECTION_NODES
+const PER_CHANNEL: u32 = 5u + INTERREFLECTION_NODES;
 const DIELECTRIC: u32 = 0u;
 const CONDUCTOR: u32 = 1u;
 
@@ -45,10 +46,10 @@ fn value(layer: Layer, ch: u32, which: u32) -> f32 {
 }
 
 // single_pass::node_lerp of a conductor base's inter-reflection table g (0 without the correction): linear between its
-// 8 nodes.
+// nodes.
 fn interreflected_at(layer: Layer, ch: u32, mu: f32) -> f32 {
-    let x = clamp(mu, 0.0, 1.0) * 7.0;
-    let j = min(u32(x), 6u);
+    let x = clamp(mu, 0.0, 1.0) * f32(INTERREFLECTION_NODES - 1u);
+    let j = min(u32(x), INTERREFLECTION_NODES - 2u);
     let at = layer.at + ch * channel_stride() + INTERREFLECTED + j;
     return layers[at] + (x - f32(j)) * (layers[at + 1u] - layers[at]);
 }
