@@ -49,6 +49,7 @@ VARIANTS = [
     ("weidlich_wilkie improved", "weidlich_wilkie", {"variant": "improved"}),
     ("albedo_scaling reciprocal", "albedo_scaling", {}),
     ("albedo_scaling view", "albedo_scaling", {"scaling": "view"}),
+    ("tabulated (precomputed)", "tabulated", {}),
 ]
 REFERENCE_SAMPLES = (100, 300, 1000, 3000)
 

@@ -28,29 +28,29 @@ pub const MAX_DEPTH: usize = 1000;
 const BLOCK: usize = 4096;
 
 /// One interface as a path sees it: roughness and the relative IOR η_below / η_above.
-struct Interface {
-    mf: Microfacet,
-    eta: f64,
+pub(crate) struct Interface {
+    pub mf: Microfacet,
+    pub eta: f64,
 }
 
-struct Slab {
-    thickness: f64,
-    sigma_a: f64,
-    sigma_s: f64,
-    g: f64,
+pub(crate) struct Slab {
+    pub thickness: f64,
+    pub sigma_a: f64,
+    pub sigma_s: f64,
+    pub g: f64,
 }
 
-enum Base {
+pub(crate) enum Base {
     Conductor { mf: Microfacet, eta: f64, k: f64 },
     Diffuse { albedo: f64, sigma: f64 },
 }
 
 /// The stack resolved for one channel: interface i is the top of slab i; the base lies below the last slab.
 pub struct ChannelStack {
-    interfaces: Vec<Interface>,
-    slabs: Vec<Slab>,
-    base: Base,
-    g2: G2Form,
+    pub(crate) interfaces: Vec<Interface>,
+    pub(crate) slabs: Vec<Slab>,
+    pub(crate) base: Base,
+    pub(crate) g2: G2Form,
 }
 
 impl ChannelStack {
@@ -164,7 +164,7 @@ fn russian_roulette(weight: &mut f64, events: usize, rng: &mut Rng) -> bool {
 
 /// BSDF value f(w_light, w_view) of boundary `b` (interface b, or the base when b = number of interfaces): light
 /// arrives along w_light and leaves along w_view, both pointing away from the boundary.
-fn boundary_f(s: &ChannelStack, b: usize, w_light: DVec3, w_view: DVec3) -> f64 {
+pub(crate) fn boundary_f(s: &ChannelStack, b: usize, w_light: DVec3, w_view: DVec3) -> f64 {
     if b < s.interfaces.len() {
         let it = &s.interfaces[b];
         return crate::bsdf::rough_dielectric(&it.mf, s.g2, it.eta, w_light, w_view);
@@ -176,7 +176,7 @@ fn boundary_f(s: &ChannelStack, b: usize, w_light: DVec3, w_view: DVec3) -> f64 
 }
 
 /// True when boundary `b` scatters through Dirac deltas only (a smooth interface or a smooth conductor).
-fn is_delta(s: &ChannelStack, b: usize) -> bool {
+pub(crate) fn is_delta(s: &ChannelStack, b: usize) -> bool {
     match s.interfaces.get(b) {
         Some(it) => it.mf.is_smooth(),
         None => matches!(&s.base, Base::Conductor { mf, .. } if mf.is_smooth()),

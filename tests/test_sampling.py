@@ -29,6 +29,7 @@ STACKS = {
         }
         for m in ("belcour", "steinberg", "weidlich_wilkie", "albedo_scaling")
     },
+    "tabulated": {name: suite(name) for name in ("rough-coat-rough-copper", "varnished-diffuse", "three-layer")},
 }
 CASES = [(m, name) for m, stacks in STACKS.items() for name in stacks]
 THETAS = (20.0, 65.0)

@@ -142,17 +142,7 @@ impl Prepared {
         };
         let (mut geo, mut cos_h) = ([0.0; BLOCK], [0.0; BLOCK]);
         let (geo, cos_h) = (&mut geo[..n], &mut cos_h[..n]);
-        // GGX with a Smith G2 has no special-function calls: with the distribution and the G2 form known constants
-        // in the loop, it vectorizes.
-        let mut ggx = *mf;
-        ggx.dist = Distribution::Ggx;
-        match (mf.dist, g2) {
-            (Distribution::Ggx, G2Form::Separable) => geometry(&ggx, G2Form::Separable, wi, wo, geo, cos_h),
-            (Distribution::Ggx, G2Form::HeightCorrelated) => {
-                geometry(&ggx, G2Form::HeightCorrelated, wi, wo, geo, cos_h)
-            }
-            _ => geometry(mf, *g2, wi, wo, geo, cos_h),
-        }
+        geometry(mf, *g2, wi, wo, geo, cos_h);
         let mut f = [0.0; BLOCK];
         let f = &mut f[..n];
         for c in 0..k {
@@ -177,9 +167,23 @@ impl Prepared {
 }
 
 /// The Fresnel-free part of microfacet reflection and the cosine its Fresnel factor takes (bsdf::reflection_geometry)
-/// for a block of columns; 0 below the horizon.
+/// for a block of columns; 0 below the horizon. GGX with a Smith G2 has no special-function calls: with the
+/// distribution and the G2 form known constants in the loop, it vectorizes.
 #[inline(always)]
-fn geometry(mf: &Microfacet, form: G2Form, wi: [&[f64]; 3], wo: [&[f64]; 3], geo: &mut [f64], cos_h: &mut [f64]) {
+pub fn geometry(mf: &Microfacet, g2: G2Form, wi: [&[f64]; 3], wo: [&[f64]; 3], geo: &mut [f64], cos_h: &mut [f64]) {
+    let mut ggx = *mf;
+    ggx.dist = Distribution::Ggx;
+    match (mf.dist, g2) {
+        (Distribution::Ggx, G2Form::Separable) => geometry_in(&ggx, G2Form::Separable, wi, wo, geo, cos_h),
+        (Distribution::Ggx, G2Form::HeightCorrelated) => {
+            geometry_in(&ggx, G2Form::HeightCorrelated, wi, wo, geo, cos_h)
+        }
+        _ => geometry_in(mf, g2, wi, wo, geo, cos_h),
+    }
+}
+
+#[inline(always)]
+fn geometry_in(mf: &Microfacet, form: G2Form, wi: [&[f64]; 3], wo: [&[f64]; 3], geo: &mut [f64], cos_h: &mut [f64]) {
     // Every column sliced to the same length: no bounds checks in the loop, which lets it vectorize.
     let n = geo.len();
     let cos_h = &mut cos_h[..n];

@@ -14,6 +14,7 @@ pub mod options;
 pub mod sample;
 pub mod single_pass;
 pub mod steinberg;
+pub mod tabulated;
 pub mod weidlich_wilkie;
 
 pub use options::{OptionKind, OptionSpec, Options, Value};
@@ -28,8 +29,14 @@ use std::sync::{Arc, Mutex};
 pub const BLOCK: usize = 64;
 
 /// The models, in the order `lamina.MODELS` lists them.
-pub const CATALOGUE: &[&ModelInfo] =
-    &[&microfacet::INFO, &belcour::INFO, &steinberg::INFO, &weidlich_wilkie::INFO, &albedo_scaling::INFO];
+pub const CATALOGUE: &[&ModelInfo] = &[
+    &microfacet::INFO,
+    &belcour::INFO,
+    &steinberg::INFO,
+    &weidlich_wilkie::INFO,
+    &albedo_scaling::INFO,
+    &tabulated::INFO,
+];
 
 /// A per-element input a model accepts beside the directions (a texture's values, flake normals).
 #[derive(Clone, Copy, Debug)]

@@ -1,0 +1,513 @@
+//! The BRDF of an isotropic stack by Fourier-series adding-doubling (Stamnes and Conklin 1984; Jakob, d'Eon, Jakob
+//! and Marschner 2014, "A Comprehensive Framework for Rendering Layered Materials"): the transport that the reference
+//! walk samples (reference.rs: the same boundaries, BSDFs and slabs), solved on a grid of directions instead of by
+//! paths. `model="tabulated"` interpolates the result.
+//!
+//! Discretization. Zenith angles fall in N_THETA cells of equal Δx, x = √(1 − cos θ) (nearly uniform in θ: Δθ from
+//! 1.3° at the normal to 1.8° at the horizon, and one square root to find); a cell's radiance is its average over the
+//! projected solid angle, which is uniform in u = sin²θ (cos θ dω = du dφ / 2). Azimuths are expanded in ORDERS
+//! cosines of φ, the azimuth between the travel directions of the light before and after an event. A boundary's
+//! operator maps order m of the radiance in incident cell j to order m of the radiance in outgoing cell o:
+//!   S_m[o][j] = π (1 + δ_m0) ā_m(o, j) w_j,   w_j = Δu_j / 2,
+//! ā_m being the Fourier coefficient of f averaged over both cells (SUB Gauss points in u, PHI_SAMPLES midpoints in
+//! φ). Smooth boundaries are exact maps between cells (Snell's law on u, radiance × η², Fresnel), the same for every
+//! order; slabs without scattering are Beer–Lambert diagonals; scattering slabs are doubled from a thin layer of
+//! single Henyey–Greenstein scattering. Rough boundaries keep the energy that importance sampling of their
+//! microfacets gives (each column rescaled to it: the quadrature misses narrow lobes). The layers combine by the
+//! adding equations, order by order.
+
+use crate::optics::distribution::{Distribution, G2Form, Microfacet};
+use crate::optics::{fresnel, reflect, refract};
+use crate::quadrature::gauss_legendre;
+use crate::reference::{boundary_f, is_delta, Base, ChannelStack};
+use crate::sampling::henyey_greenstein;
+use crate::stack::Stack;
+use glam::DVec3;
+use rayon::prelude::*;
+use std::f64::consts::PI;
+
+/// Zenith cells over [0, π/2], of equal Δx in x = √(1 − cos θ).
+pub const N_THETA: usize = 64;
+/// Fourier orders of the azimuth.
+pub const ORDERS: usize = 64;
+/// Table nodes over the azimuth φ ∈ [0, π], uniform in y = sin(φ/2) (densest at φ = 0, where the lobes peak).
+pub const N_PHI: usize = 33;
+/// Zenith nodes of the table: the cells' edges, x = k / N_THETA, k = 0 … N_THETA.
+pub const NODES: usize = N_THETA + 1;
+
+/// Where the records of the zenith nodes (i, o) start in the table, in N_PHI × channels values: reciprocity
+/// makes f symmetric in (i, o), so only i ≤ o is stored (the pairs ordered by max(i, o), then min(i, o)).
+#[inline(always)]
+pub fn pair(i: usize, o: usize) -> usize {
+    let (lo, hi) = if i <= o { (i, o) } else { (o, i) };
+    hi * (hi + 1) / 2 + lo
+}
+
+/// Zenith node pairs the table stores.
+pub const PAIRS: usize = NODES * (NODES + 1) / 2;
+/// Gauss points per cell (in u) of the cell averages.
+const SUB: usize = 2;
+/// Midpoint samples over φ ∈ [0, π] of the Fourier projections.
+const PHI_SAMPLES: usize = 2 * ORDERS;
+/// Visible normals per Gauss point of the energy that a rough boundary's column is rescaled to.
+const ENERGY_NORMALS: usize = 4096;
+/// Optical thickness of the thin layer that doubling starts from (single scattering is exact to O(Δτ²/μ²)).
+const THIN: f64 = 1e-5;
+
+/// An n × n matrix, row-major: m[o * n + j] maps incident cell j to outgoing cell o.
+type Mat = Vec<f64>;
+/// One matrix per Fourier order.
+type Op = Vec<Mat>;
+
+/// The zenith cells: weights w_j = Δu/2 and Gauss points (u, weight), SUB per cell, weights summing to w_j.
+pub struct Cells {
+    pub w: Vec<f64>,
+    edges: Vec<f64>,
+    points: Vec<(f64, f64)>,
+}
+
+impl Cells {
+    pub fn new() -> Cells {
+        let n = N_THETA;
+        let edges: Vec<f64> = (0..=n).map(|k| 1.0 - (1.0 - (k as f64 / n as f64).powi(2)).powi(2)).collect();
+        let gl = gauss_legendre(SUB);
+        let points = (0..n)
+            .flat_map(|j| {
+                let (a, b) = (edges[j], edges[j + 1]);
+                gl.iter().map(move |&(x, v)| (a + 0.5 * (b - a) * (x + 1.0), 0.25 * (b - a) * v))
+            })
+            .collect();
+        Cells { w: (0..n).map(|j| 0.5 * (edges[j + 1] - edges[j])).collect(), edges, points }
+    }
+
+    /// Gauss points of cell j: (u, weight).
+    fn points(&self, j: usize) -> &[(f64, f64)] {
+        &self.points[j * SUB..(j + 1) * SUB]
+    }
+
+    /// Average over cell j (projected solid angle) of g(μ).
+    fn average(&self, j: usize, g: impl Fn(f64) -> f64) -> f64 {
+        self.points(j).iter().map(|&(u, v)| v * g((1.0 - u).sqrt())).sum::<f64>() / self.w[j]
+    }
+}
+
+impl Default for Cells {
+    fn default() -> Self {
+        Cells::new()
+    }
+}
+
+/// The direction of zenith u = sin²θ and azimuth (cos φ, sin φ), on the side `z` = ±1.
+fn direction(u: f64, (c, s): (f64, f64), z: f64) -> DVec3 {
+    let sin = u.sqrt();
+    DVec3::new(sin * c, sin * s, z * (1.0 - u).sqrt())
+}
+
+fn zeros() -> Mat {
+    vec![0.0; N_THETA * N_THETA]
+}
+
+fn diagonal(d: impl Fn(usize) -> f64) -> Mat {
+    let mut m = zeros();
+    (0..N_THETA).for_each(|j| m[j * N_THETA + j] = d(j));
+    m
+}
+
+/// The same matrix for every order (a Dirac in azimuth: smooth boundaries, direct transmission).
+fn every_order(m: Mat) -> Op {
+    vec![m; ORDERS]
+}
+
+/// a · b.
+fn mul(a: &[f64], b: &[f64]) -> Mat {
+    let n = N_THETA;
+    let mut c = zeros();
+    for i in 0..n {
+        let row = &mut c[i * n..(i + 1) * n];
+        for k in 0..n {
+            let x = a[i * n + k];
+            if x != 0.0 {
+                row.iter_mut().zip(&b[k * n..(k + 1) * n]).for_each(|(c, b)| *c += x * b);
+            }
+        }
+    }
+    c
+}
+
+fn add(a: &[f64], b: &[f64]) -> Mat {
+    a.iter().zip(b).map(|(a, b)| a + b).collect()
+}
+
+/// (I − a)⁻¹ b by Gaussian elimination with partial pivoting (I − a is non-singular: a's columns carry less
+/// energy than they receive, a product of reflectances).
+fn solve_one_minus(a: &[f64], b: &[f64]) -> Mat {
+    let n = N_THETA;
+    let mut m: Mat = (0..n * n).map(|k| if k / n == k % n { 1.0 } else { 0.0 } - a[k]).collect();
+    let mut x = b.to_vec();
+    for col in 0..n {
+        let p = (col..n).max_by(|&i, &k| m[i * n + col].abs().total_cmp(&m[k * n + col].abs())).unwrap();
+        if p != col {
+            for k in 0..n {
+                m.swap(p * n + k, col * n + k);
+                x.swap(p * n + k, col * n + k);
+            }
+        }
+        let d = m[col * n + col];
+        for i in col + 1..n {
+            let f = m[i * n + col] / d;
+            if f != 0.0 {
+                for k in col..n {
+                    m[i * n + k] -= f * m[col * n + k];
+                }
+                for k in 0..n {
+                    x[i * n + k] -= f * x[col * n + k];
+                }
+            }
+        }
+    }
+    for col in (0..n).rev() {
+        let d = m[col * n + col];
+        for k in 0..n {
+            let s: f64 = (col + 1..n).map(|i| m[col * n + i] * x[i * n + k]).sum();
+            x[col * n + k] = (x[col * n + k] - s) / d;
+        }
+    }
+    x
+}
+
+/// The operator of a boundary (or a thin slab's scattering) with kernel f(w_light, w_view): light arrives on the
+/// side `z_light` (w_light.z has its sign, travel direction −w_light at azimuth 0) and leaves on the side `z_view`.
+fn project(cells: &Cells, z_light: f64, z_view: f64, f: &(dyn Fn(DVec3, DVec3) -> f64 + Sync)) -> Op {
+    let n = N_THETA;
+    let phis: Vec<(f64, f64)> = (0..PHI_SAMPLES)
+        .map(|p| {
+            let phi = (p as f64 + 0.5) * PI / PHI_SAMPLES as f64;
+            (phi.cos(), phi.sin())
+        })
+        .collect();
+    let cosines: Vec<f64> = (0..ORDERS)
+        .flat_map(|m| (0..PHI_SAMPLES).map(move |p| (m as f64 * (p as f64 + 0.5) * PI / PHI_SAMPLES as f64).cos()))
+        .collect();
+    let columns: Vec<Vec<f64>> = (0..n)
+        .into_par_iter()
+        .map(|j| {
+            let mut column = vec![0.0; ORDERS * n];
+            let mut sums = [0.0; PHI_SAMPLES];
+            for o in 0..n {
+                sums.fill(0.0);
+                for &(us, vs) in cells.points(j) {
+                    let w_light = direction(us, (-1.0, 0.0), z_light);
+                    for &(ut, vt) in cells.points(o) {
+                        for (sum, &phi) in sums.iter_mut().zip(&phis) {
+                            *sum += vs * vt * f(w_light, direction(ut, phi, z_view));
+                        }
+                    }
+                }
+                let scale = 2.0 * PI / (PHI_SAMPLES as f64 * cells.w[o]);
+                for m in 0..ORDERS {
+                    let c = &cosines[m * PHI_SAMPLES..(m + 1) * PHI_SAMPLES];
+                    column[m * n + o] = scale * sums.iter().zip(c).map(|(s, c)| s * c).sum::<f64>();
+                }
+            }
+            column
+        })
+        .collect();
+    (0..ORDERS).map(|m| (0..n * n).map(|k| columns[k % n][m * n + k / n]).collect()).collect()
+}
+
+/// Energy leaving each incident cell's column (order 0): Σ_o w_o S_0[o][j] / w_j.
+fn column_energy(cells: &Cells, s: &Mat, j: usize) -> f64 {
+    (0..N_THETA).map(|o| cells.w[o] * s[o * N_THETA + j]).sum::<f64>() / cells.w[j]
+}
+
+/// Rescales every order of column j of `op` so that its energy is `target(j)`.
+fn rescale_columns(cells: &Cells, op: &mut Op, target: impl Fn(usize) -> f64) {
+    for j in 0..N_THETA {
+        let e = column_energy(cells, &op[0], j);
+        if e > 0.0 {
+            let k = target(j) / e;
+            op.iter_mut().for_each(|m| (0..N_THETA).for_each(|o| m[o * N_THETA + j] *= k));
+        }
+    }
+}
+
+/// What a rough interface (relative IOR `eta` below / above) seen from direction `w` (its side up, w.z > 0)
+/// reflects and transmits: E over visible normals of F G2/G1 and (1 − F) G2/G1 (the weights of the reference's
+/// sampling, reference.rs `scatter_interface`), on a lattice of ENERGY_NORMALS normals.
+fn interface_energy(mf: &Microfacet, g2: G2Form, eta: f64, w: DVec3) -> (f64, f64) {
+    let (mut r, mut t) = (0.0, 0.0);
+    for m in super::visible_normals(mf, w, ENERGY_NORMALS) {
+        let f = fresnel::dielectric(w.dot(m), eta);
+        let o = reflect(w, m);
+        if o.z > 0.0 {
+            r += f * mf.g2(g2, w, o, m) / mf.g1(w, m);
+        }
+        if let Some(o) = refract(w, m, eta).filter(|o| o.z < 0.0) {
+            t += (1.0 - f) * mf.g2(g2, w, o, m) / mf.g1(w, m);
+        }
+    }
+    (r / ENERGY_NORMALS as f64, t / ENERGY_NORMALS as f64)
+}
+
+/// What a rough conductor seen from `w` reflects: E over visible normals of F G2/G1.
+fn conductor_energy(mf: &Microfacet, g2: G2Form, eta: f64, k: f64, w: DVec3) -> f64 {
+    super::visible_normals(mf, w, ENERGY_NORMALS)
+        .iter()
+        .map(|&m| {
+            let o = reflect(w, m);
+            if o.z > 0.0 {
+                fresnel::conductor(w.dot(m), eta, k) * mf.g2(g2, w, o, m) / mf.g1(w, m)
+            } else {
+                0.0
+            }
+        })
+        .sum::<f64>()
+        / ENERGY_NORMALS as f64
+}
+
+/// The average over cell j of a directional energy e(w) (w on the +z side, azimuth 0).
+fn cell_energy(cells: &Cells, j: usize, e: impl Fn(DVec3) -> f64) -> f64 {
+    cells.points(j).iter().map(|&(u, v)| v * e(direction(u, (1.0, 0.0), 1.0))).sum::<f64>() / cells.w[j]
+}
+
+/// Refraction through a smooth interface from a medium into one of relative IOR `r` (n_to / n_from): each incident
+/// cell's u-range maps to u / r² (Snell), radiance scales by r², times 1 − F; what maps beyond u = 1 is totally
+/// reflected.
+fn smooth_refraction(cells: &Cells, r: f64) -> Mat {
+    let n = N_THETA;
+    let mut m = zeros();
+    for j in 0..n {
+        let (a, b) = (cells.edges[j] / (r * r), (cells.edges[j + 1] / (r * r)).min(1.0));
+        for o in 0..n {
+            let (c, d) = (cells.edges[o], cells.edges[o + 1]);
+            let (lo, hi) = (a.max(c), b.min(d));
+            if hi > lo {
+                let u_from = (0.5 * (lo + hi) * r * r).min(1.0);
+                let t = fresnel::dielectric_transmittance((1.0 - u_from).sqrt(), r);
+                m[o * n + j] = t * r * r * (hi - lo) / (d - c);
+            }
+        }
+    }
+    m
+}
+
+/// A layer's four operators: reflection of light from above and from below, transmission downward and upward.
+struct Operators {
+    r_top: Op,
+    r_bottom: Op,
+    t_down: Op,
+    t_up: Op,
+}
+
+/// The operators of interface b of channel stack `s`.
+fn interface(cells: &Cells, s: &ChannelStack, b: usize) -> Operators {
+    let it = &s.interfaces[b];
+    let eta = it.eta;
+    if is_delta(s, b) {
+        return Operators {
+            r_top: every_order(diagonal(|j| cells.average(j, |mu| fresnel::dielectric(mu, eta)))),
+            r_bottom: every_order(diagonal(|j| cells.average(j, |mu| fresnel::dielectric(mu, 1.0 / eta)))),
+            t_down: every_order(smooth_refraction(cells, eta)),
+            t_up: every_order(smooth_refraction(cells, 1.0 / eta)),
+        };
+    }
+    let f = |w_light: DVec3, w_view: DVec3| boundary_f(s, b, w_light, w_view);
+    let energy = |j: usize, eta: f64| {
+        let rt: Vec<(f64, f64)> = cells
+            .points(j)
+            .iter()
+            .map(|&(u, _)| interface_energy(&it.mf, s.g2, eta, direction(u, (1.0, 0.0), 1.0)))
+            .collect();
+        let avg = |k: fn(&(f64, f64)) -> f64| {
+            cells.points(j).iter().zip(&rt).map(|(&(_, v), e)| v * k(e)).sum::<f64>() / cells.w[j]
+        };
+        (avg(|e| e.0), avg(|e| e.1))
+    };
+    let from_above: Vec<(f64, f64)> = (0..N_THETA).into_par_iter().map(|j| energy(j, eta)).collect();
+    let from_below: Vec<(f64, f64)> = (0..N_THETA).into_par_iter().map(|j| energy(j, 1.0 / eta)).collect();
+    let mut layer = Operators {
+        r_top: project(cells, 1.0, 1.0, &f),
+        r_bottom: project(cells, -1.0, -1.0, &f),
+        t_down: project(cells, 1.0, -1.0, &f),
+        t_up: project(cells, -1.0, 1.0, &f),
+    };
+    rescale_columns(cells, &mut layer.r_top, |j| from_above[j].0);
+    rescale_columns(cells, &mut layer.t_down, |j| from_above[j].1);
+    rescale_columns(cells, &mut layer.r_bottom, |j| from_below[j].0);
+    rescale_columns(cells, &mut layer.t_up, |j| from_below[j].1);
+    layer
+}
+
+/// The base's reflection operator (light from above).
+fn base(cells: &Cells, s: &ChannelStack) -> Op {
+    let b = s.interfaces.len();
+    match &s.base {
+        Base::Conductor { mf, eta, k } if mf.is_smooth() => {
+            every_order(diagonal(|j| cells.average(j, |mu| fresnel::conductor(mu, *eta, *k))))
+        }
+        Base::Conductor { mf, eta, k } => {
+            let mut op = project(cells, 1.0, 1.0, &|wl, wv| boundary_f(s, b, wl, wv));
+            let energy: Vec<f64> = (0..N_THETA)
+                .into_par_iter()
+                .map(|j| cell_energy(cells, j, |w| conductor_energy(mf, s.g2, *eta, *k, w)))
+                .collect();
+            rescale_columns(cells, &mut op, |j| energy[j]);
+            op
+        }
+        Base::Diffuse { .. } => project(cells, 1.0, 1.0, &|wl, wv| boundary_f(s, b, wl, wv)),
+    }
+}
+
+/// The operators of slab i: None when it does nothing (no thickness or no extinction).
+fn slab(cells: &Cells, s: &ChannelStack, i: usize) -> Option<Operators> {
+    let sl = &s.slabs[i];
+    let tau = (sl.sigma_a + sl.sigma_s) * sl.thickness;
+    if tau == 0.0 {
+        return None;
+    }
+    if sl.sigma_s == 0.0 {
+        let t = every_order(diagonal(|j| cells.average(j, |mu| (-tau / mu).exp())));
+        let r = every_order(zeros());
+        return Some(Operators { r_top: r.clone(), r_bottom: r, t_down: t.clone(), t_up: t });
+    }
+    // A thin layer of single scattering: L_o = (Δτ ω / μ_o) ∫ p L dω (both sides alike: the phase function is
+    // symmetric), each column's scattered energy made exactly Δτ ω ⟨1/μ_j⟩ (the discrete phase function integrates
+    // to one), then doubled 2^k times up to τ.
+    let omega = sl.sigma_s / (sl.sigma_a + sl.sigma_s);
+    let doublings = (tau / THIN).log2().ceil().max(0.0) as i32;
+    let dtau = tau / 2f64.powi(doublings);
+    let phase = |wl: DVec3, wv: DVec3| henyey_greenstein((-wl).dot(wv), sl.g) / (wl.z * wv.z).abs();
+    let mut back = project(cells, 1.0, 1.0, &phase);
+    let mut forward = project(cells, 1.0, -1.0, &phase);
+    for j in 0..N_THETA {
+        let e = column_energy(cells, &back[0], j) + column_energy(cells, &forward[0], j);
+        let k = dtau * omega * cells.average(j, |mu| 1.0 / mu) / e;
+        for op in [&mut back, &mut forward] {
+            op.iter_mut().for_each(|m| (0..N_THETA).for_each(|o| m[o * N_THETA + j] *= k));
+        }
+    }
+    let direct = diagonal(|j| cells.average(j, |mu| (-dtau / mu).exp()));
+    let (r, t): (Op, Op) = back
+        .into_par_iter()
+        .zip(forward)
+        .map(|(mut r, f)| {
+            let mut t = add(&direct, &f);
+            for _ in 0..doublings {
+                // Two copies of the layer: R' = R + T (I − R R)⁻¹ R T, T' = T (I − R R)⁻¹ T.
+                let x = solve_one_minus(&mul(&r, &r), &t);
+                r = add(&r, &mul(&mul(&t, &r), &x));
+                t = mul(&t, &x);
+            }
+            (r, t)
+        })
+        .unzip();
+    Some(Operators { r_top: r.clone(), r_bottom: r, t_down: t.clone(), t_up: t })
+}
+
+/// Layer `a` over a stack of reflection `r` (order by order): a.R_top + a.T_up (I − R a.R_bottom)⁻¹ R a.T_down,
+/// without a.R_top when `with_top` is false.
+fn over(a: &Operators, r: Op, with_top: bool) -> Op {
+    r.into_par_iter()
+        .enumerate()
+        .map(|(m, r)| {
+            let x = solve_one_minus(&mul(&r, &a.r_bottom[m]), &mul(&r, &a.t_down[m]));
+            let below = mul(&a.t_up[m], &x);
+            if with_top {
+                add(&a.r_top[m], &below)
+            } else {
+                below
+            }
+        })
+        .collect()
+}
+
+/// The reflection of channel stack `s` less its top boundary's own reflection (which the model evaluates exactly),
+/// order by order.
+fn reflection_below_top(cells: &Cells, s: &ChannelStack) -> Op {
+    let mut r = base(cells, s);
+    let n = s.interfaces.len();
+    if n == 0 {
+        return every_order(zeros());
+    }
+    for i in (0..n).rev() {
+        if let Some(sl) = slab(cells, s, i) {
+            r = over(&sl, r, true);
+        }
+        r = over(&interface(cells, s, i), r, i > 0);
+    }
+    r
+}
+
+/// The cells a table node (x = k / N_THETA, k = 0 … N_THETA) interpolates, with their weights: the two cells it
+/// separates, the one cell at either end.
+fn node_cells(k: usize) -> Vec<(usize, f64)> {
+    match k {
+        0 => vec![(0, 1.0)],
+        k if k == N_THETA => vec![(N_THETA - 1, 1.0)],
+        k => vec![(k - 1, 0.5), (k, 0.5)],
+    }
+}
+
+/// The table of `model="tabulated"`: f less the top boundary's reflection at the zenith nodes x = k / N_THETA (the
+/// cells' edges, k = 0 … N_THETA, both θi and θo) × N_PHI azimuths y = sin(φ/2) = p / (N_PHI − 1), φ ∈ [0, π] between
+/// the travel directions (φ = π − the azimuth between wi and wo), per channel: index (pair(i, o) · N_PHI + p) ·
+/// channels + c. A node's Fourier coefficients are those of the cells beside it, averaged; at θ = 0 only order 0
+/// remains (f does not depend on the azimuth there). Reciprocal (the average of (i, o) and (o, i), stored once);
+/// the ringing of the truncated series below zero is clipped.
+pub fn tabulate(stack: &Stack, dist: Distribution, g2: G2Form) -> Vec<f32> {
+    let cells = Cells::new();
+    let (n, ch) = (N_THETA, stack.channels);
+    let mut table = vec![0f32; PAIRS * N_PHI * ch];
+    let mut done: Vec<(Vec<f64>, usize)> = Vec::new();
+    let cosines: Vec<f64> = (0..N_PHI)
+        .flat_map(|p| {
+            let phi = 2.0 * (p as f64 / (N_PHI - 1) as f64).asin();
+            (0..ORDERS).map(move |m| (m as f64 * phi).cos())
+        })
+        .collect();
+    for c in 0..ch {
+        // Channels with equal optical constants share one solution.
+        let key = channel_key(stack, c);
+        if let Some(&(_, c0)) = done.iter().find(|(k, _)| *k == key) {
+            for k in 0..PAIRS * N_PHI {
+                table[k * ch + c] = table[k * ch + c0];
+            }
+            continue;
+        }
+        done.push((key, c));
+        let r = reflection_below_top(&cells, &ChannelStack::new(stack, c, dist, g2));
+        // ā_m(o, j) = S_m[o][j] / (π (1 + δ_m0) w_j), symmetrized.
+        let a = |m: usize, o: usize, j: usize| r[m][o * n + j] / (PI * if m == 0 { 2.0 } else { 1.0 } * cells.w[j]);
+        let coefficient = |m: usize, o: usize, j: usize| 0.5 * (a(m, o, j) + a(m, j, o));
+        for o in 0..NODES {
+            for i in 0..=o {
+                let orders = if i == 0 || o == 0 { 1 } else { ORDERS };
+                let mut am = [0.0; ORDERS];
+                for (ci, wi) in node_cells(i) {
+                    for (co, wo) in node_cells(o) {
+                        (0..orders).for_each(|m| am[m] += wi * wo * coefficient(m, co, ci));
+                    }
+                }
+                for p in 0..N_PHI {
+                    let f: f64 = am.iter().zip(&cosines[p * ORDERS..(p + 1) * ORDERS]).map(|(a, c)| a * c).sum();
+                    table[(pair(i, o) * N_PHI + p) * ch + c] = f.max(0.0) as f32;
+                }
+            }
+        }
+    }
+    table
+}
+
+/// What channel c of `stack` is made of (two channels with equal keys have equal tables).
+fn channel_key(stack: &Stack, c: usize) -> Vec<f64> {
+    use crate::stack::Layer;
+    stack
+        .layers
+        .iter()
+        .flat_map(|l| match l {
+            Layer::Dielectric { ior, sigma_a, sigma_s, .. } => vec![ior[c], sigma_a[c], sigma_s[c]],
+            Layer::Conductor { ior, k, .. } => vec![ior[c], k[c]],
+            Layer::Diffuse { albedo, .. } => vec![albedo[c]],
+        })
+        .collect()
+}
