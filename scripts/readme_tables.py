@@ -18,6 +18,7 @@ CHART_ROWS = (
     ("steinberg (lamina defaults)", "`steinberg`"),
     ("weidlich_wilkie (lamina defaults)", "`weidlich_wilkie`"),
     ("albedo_scaling reciprocal", "`albedo_scaling`"),
+    ("tabulated (precomputed)", "`tabulated` (after its precomputation)"),
     ("Mitsuba principled", "Mitsuba `principled` (closest parameters)"),
 )
 
