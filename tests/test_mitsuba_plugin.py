@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 from conftest import MI_RGB, random_hemisphere
 
-#: (model, stack) for every analytic model; the smooth-topped gold clear coat exercises the delta component.
+#: (model, stack) for every model but the reference; the smooth-topped gold clear coat exercises the delta component.
 CASES = [
     ("microfacet", lamina.Stack([lamina.materials.metal("Au", 0.25)])),
     ("belcour", lamina.materials.suite("rough-coat-rough-copper")),
@@ -23,6 +23,7 @@ CASES = [
     ("steinberg", lamina.materials.suite("rough-coat-rough-copper")),
     ("weidlich_wilkie", lamina.materials.suite("varnished-diffuse")),
     ("albedo_scaling", lamina.materials.suite("rough-coat-rough-copper")),
+    ("tabulated", lamina.materials.suite("gold-clearcoat")),
 ]
 IDS = [f"{m}-{i}" for i, (m, _) in enumerate(CASES)]
 

@@ -1,5 +1,5 @@
 """Pictures that compare models. The gallery: material balls of the validation suite, car paint and the patina
-under the built-in sky and sun, each analytic layered model beside the Monte Carlo reference, with heatmaps of each
+under the built-in sky and sun, each layered model beside the Monte Carlo reference, with heatmaps of each
 model's relative error. lamina's main job (`make demo`, `lamina gallery`: `write_gallery`). Needs matplotlib."""
 
 from __future__ import annotations
@@ -14,8 +14,9 @@ from . import gpu as _gpu
 from .renderer import DirectionalLight, relative_error, render, save_image, sky, to_srgb8
 from .stack import Stack
 
-#: The analytic models the gallery compares (the layered ones; microfacet takes single interfaces only).
-MODELS = ("belcour", "steinberg", "weidlich_wilkie", "albedo_scaling")
+#: The models the gallery compares: the layered analytic ones and lamina's tabulated one (microfacet takes single
+#: interfaces only).
+MODELS = ("belcour", "steinberg", "weidlich_wilkie", "albedo_scaling", "tabulated")
 
 
 def gallery_materials() -> dict[str, Stack]:
