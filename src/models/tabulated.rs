@@ -10,8 +10,9 @@
 //! | `g2`           | string | `height_correlated` | masking-shadowing, as the reference's                          |
 //!
 //! Isotropic stacks only: anisotropic roughness raises a ValueError. A table holds (N_THETA + 1)² N_PHI f32 per
-//! channel, each reciprocal pair once (0.81 MiB for RGB). Sampling: the top's visible normals and the inner rough boundaries' lobes, weighted by their
-//! energies, and the cosine. A smooth top's mirror reflection is a Dirac lobe (`specular`).
+//! channel, each reciprocal pair once (0.81 MiB for RGB). Sampling: the top's visible normals and the inner rough
+//! boundaries' lobes (each at least as rough as the layers above it), weighted by their energies, and the cosine.
+//! A smooth top's mirror reflection is a Dirac lobe (`specular`).
 
 use super::options::{DISTRIBUTION, G2};
 use super::sample::defensive_mixture;
@@ -45,7 +46,8 @@ pub struct Prepared {
     top: Option<Microfacet>,
     g2: G2Form,
     eta: Vec<f64>,
-    /// Sampling: the rough boundaries' microfacets below the top, and the table's albedo per zenith node.
+    /// Sampling: the rough boundaries' microfacets below the top (each at least as rough as those above it), and
+    /// the table's albedo per zenith node.
     lobes: Vec<Microfacet>,
     albedo_below_top: Vec<f64>,
 }
@@ -74,8 +76,18 @@ pub fn prepare(stack: &Stack, opts: &Options) -> Result<Prepared> {
     let len = PAIRS * N_PHI * stack.channels;
     let table = cached(&cache_name(stack, opts), len, || tabulate(stack, opts.distribution, opts.g2));
     let top = stack.layers[0].microfacet(opts.distribution).filter(|m| !m.is_smooth());
-    let lobes =
-        stack.layers[1..].iter().filter_map(|l| l.microfacet(opts.distribution)).filter(|m| !m.is_smooth()).collect();
+    // Sampling proposes each inner rough boundary's lobe as seen through the layers above it, at least as rough as
+    // the roughest of them (Elek's m₂ ≥ m₁): a glossy metal under a rough coat reflects a lobe as wide as the coat's.
+    let mut rougher = 0.0f64;
+    let mut lobes = Vec::new();
+    for (i, mf) in stack.layers.iter().enumerate().filter_map(|(i, l)| Some((i, l.microfacet(opts.distribution)?))) {
+        if i > 0 && !mf.is_smooth() {
+            lobes.push(mf.with_alpha(mf.alpha_x.max(rougher), mf.alpha_y.max(rougher)));
+        }
+        if !mf.is_smooth() {
+            rougher = rougher.max(mf.alpha_x);
+        }
+    }
     let cells = Cells::new();
     // Σ_cells w_o ∫ f dφ over the full circle (cell values: the mean of the nodes at its edges; trapezoids over
     // the nodes' φ ∈ [0, π], twice), mean of the channels.
