@@ -121,8 +121,8 @@ fn zenith(z: f64) -> f64 {
 
 impl Prepared {
     /// f for a block of rows (`Model::eval_block`): the top's exact reflection plus the interpolated table. The
-    /// first pass (reflection geometry, Fresnel of the first channel, table coordinates) runs in vector lanes; the
-    /// second gathers the table's corners.
+    /// first passes (the top's reflection channel by channel, the table coordinates) run in vector lanes; the last
+    /// gathers the table's corners.
     #[inline(always)]
     fn eval_columns(&self, wi: [&[f64]; 3], wo: [&[f64]; 3], out: &mut [f64]) {
         let n = wi[0].len();
