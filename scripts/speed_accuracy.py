@@ -294,11 +294,12 @@ def plot(rows: list, path: Path) -> None:
             )
             ax.grid(True, which="both", alpha=0.3)
         row_axes[0].set_ylabel(f"mean relative L1 lobe error vs the reference ({name})")
-    handles = [
-        plt.Line2D([], [], marker="s" if m == "reference" else "o", ls="", color=c, label=m) for m, c in colours.items()
-    ]
     # The tabulated model's cost is per evaluation after a precomputation of its own per stack (docs/validation.md).
-    handles[list(colours).index("tabulated")].set_label("tabulated (after a per-stack precomputation, 0.1–2 s)")
+    names = {"tabulated": "tabulated (after a per-stack precomputation, 0.1–2 s)"}
+    handles = [
+        plt.Line2D([], [], marker="s" if m == "reference" else "o", ls="", color=c, label=names.get(m, m))
+        for m, c in colours.items()
+    ]
     handles.append(plt.Line2D([], [], marker="D", ls="", color="grey", label="GPU (wgpu, float32)"))
     # An error bar as wide as its point (the tabulated model sits at the reference's noise) would reach zero.
     axes[0, 0].set_ylim(bottom=2e-3)

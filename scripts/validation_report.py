@@ -658,13 +658,33 @@ CORRECTIONS = [
 POPULATION = 200
 
 
+def resolved_population():
+    """The held-out population (lamina.materials.population(POPULATION, seed=1)) with its cached references on the
+    suite grid: ([(stack, f, se)] of the stacks whose reference resolves their lobes at θi ≤ 80°, the number left
+    out because it does not)."""
+    from lamina import atlas
+    from lamina.reference import SUITE_THETAS, cached_reference, suite_directions
+    from tqdm import tqdm
+
+    low = np.array(SUITE_THETAS) <= 80
+    wi, wo = suite_directions()
+    resolved, unresolved = [], 0
+    for _, stack in tqdm(lamina.materials.population(POPULATION, 1), desc="population references", unit="stack"):
+        f, se = cached_reference(stack, wi, wo, samples=atlas.GROUND_TRUTH_SAMPLES, seed=0, progress=False)
+        if (se.sum(axis=(1, 2)) / np.abs(f).sum(axis=(1, 2)))[low].max() <= atlas.MAX_NOISE:
+            resolved.append((stack, f, se))
+        else:
+            unresolved += 1
+    return resolved, unresolved
+
+
 def corrections_section():
     """lamina's corrections beyond the published models, each switched on alone and together (variant="improved"),
     against the reference: the mean lobe error at θi ≤ 80° per suite material, and over the suite and the held-out
     population (lamina.materials.population(200, seed=1), stacks whose reference resolves their lobes); the cost of
     each variant, and the largest albedo of the improved variants (energy)."""
     from lamina import atlas
-    from lamina.reference import SUITE_THETAS, cached_reference, suite_directions, suite_reference
+    from lamina.reference import SUITE_THETAS, suite_directions, suite_reference
     from tqdm import tqdm
 
     low = np.array(SUITE_THETAS) <= 80
@@ -678,11 +698,7 @@ def corrections_section():
             return np.nan
 
     suite = {name: suite_reference(name, samples=20_000)[2] for name in lamina.materials.SUITE}
-    population = []
-    for _, stack in tqdm(lamina.materials.population(POPULATION, 1), desc="population references", unit="stack"):
-        f, se = cached_reference(stack, wi, wo, samples=atlas.GROUND_TRUTH_SAMPLES, seed=0, progress=False)
-        if (se.sum(axis=(1, 2)) / np.abs(f).sum(axis=(1, 2)))[low].max() <= atlas.MAX_NOISE:
-            population.append((stack, f))
+    population = [(stack, f) for stack, f, _ in resolved_population()[0]]
     out = [
         "",
         "## lamina's corrections, one at a time",
@@ -789,7 +805,7 @@ def tabulated_section():
     import tempfile
 
     from lamina import atlas
-    from lamina.reference import SUITE_THETAS, cache_dir, cached_reference, suite_directions, suite_reference
+    from lamina.reference import SUITE_THETAS, cache_dir, suite_directions, suite_reference
 
     low = np.array(SUITE_THETAS) <= 80
     wi, wo = suite_directions()
@@ -856,12 +872,9 @@ def tabulated_section():
         )
     blanks = " | ".join("" for _ in SUITE_THETAS)
     out.append(f"| **suite mean** | {blanks} | **{np.mean(suite_errors):.4f}** | | |")
-    population, unsupported, unresolved = [], 0, 0
-    for _, stack in lamina.materials.population(POPULATION, 1):
-        f, se = cached_reference(stack, wi, wo, samples=atlas.GROUND_TRUTH_SAMPLES, seed=0, progress=False)
-        if (se.sum(axis=(1, 2)) / np.abs(f).sum(axis=(1, 2)))[low].max() > atlas.MAX_NOISE:
-            unresolved += 1
-            continue
+    population, unsupported = [], 0
+    resolved, unresolved = resolved_population()
+    for stack, f, se in resolved:
         m = measure(stack, f, se)
         if m is None:
             unsupported += 1

@@ -63,11 +63,9 @@ def test_the_reference_options_reach_the_table(rng):
 
 
 SCRIPT = """
-import json, sys, time, numpy as np, lamina
+import json, lamina
 s = lamina.materials.suite("rough-coat-rough-copper")
-t0 = time.perf_counter()
-f = s.eval([0.3, 0.1, 0.9], [[0.0, 0.0, 1.0], [-0.2, 0.4, 0.8]], "tabulated")
-print(json.dumps({"f": f.tolist(), "seconds": time.perf_counter() - t0}))
+print(json.dumps(s.eval([0.3, 0.1, 0.9], [[0.0, 0.0, 1.0], [-0.2, 0.4, 0.8]], "tabulated").tolist()))
 """
 
 
@@ -79,8 +77,7 @@ def test_tables_are_cached_on_disk_keyed_by_the_stack(tmp_path):
     assert len(files) == 1
     # The issue's memory budget: ≤ 16 MiB per isotropic stack (RGB here).
     assert files[0].stat().st_size <= 16 * 2**20
-    second = run()
-    assert second["f"] == first["f"]
+    assert run() == first
     # Another stack (rough-coat-rough-copper with a rougher coat), another file.
     subprocess.check_call(
         [
