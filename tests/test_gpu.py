@@ -93,7 +93,7 @@ def test_belcour_suite(material):
         {"energy": "fresnel"},
         {"cosines": "real", "jacobian": "j21"},
         {"tir": "fraction"},
-        {"variant": "improved"},
+        {"microfacet_transmission": True},
     ],
 )
 @pytest.mark.parametrize("material", ["anisotropic-coat-metal", "varnished-diffuse", "three-layer"])
@@ -116,10 +116,10 @@ def test_layered_models_on_the_suite(material, model):
         ("steinberg", {"clamp_roughness": False, "eta2": False}),
         ("steinberg", {"interreflection": True}),
         ("steinberg", {"microfacet_transmission": True}),
-        ("steinberg", {"variant": "improved", "lut": "fitted"}),
+        ("steinberg", {"interreflection": True, "conductor_interreflection": True, "lut": "fitted"}),
         ("steinberg", {"conductor_interreflection": True, "eta2": False}),
         ("weidlich_wilkie", {"precomputed": True}),
-        ("weidlich_wilkie", {"variant": "improved"}),
+        ("weidlich_wilkie", {"interreflection": True}),
         ("weidlich_wilkie", {"conductor_interreflection": True, "precomputed": True}),
         ("weidlich_wilkie", {"distribution": "ggx", "g2": "height_correlated", "fresnel": "lazanyi"}),
         ("weidlich_wilkie", {"clamp_roughness": False, "eta2": False, "interreflection": True}),
@@ -219,6 +219,9 @@ def test_device_choice_and_errors():
     with pytest.raises(ValueError, match="at most 8 layers"):
         deep.sample(wo, np.full(3, 0.5), "steinberg", device="gpu")
     lamina.render(deep, "steinberg", width=4, height=4, device="gpu", lights=[lamina.DirectionalLight((0, 0, 1))])
+    with pytest.raises(ValueError, match="transport_fit .variant='improved'. runs on the CPU only"):
+        materials.suite("gold-clearcoat").eval(wi, wo, "steinberg", device="gpu", variant="improved")
+    assert not gpu.use_gpu("auto", "belcour", {"variant": "improved"})
     with pytest.raises(ValueError, match="tabulated=False runs on the CPU only"):
         materials.suite("gold-clearcoat").eval(wi, wo, "belcour", device="gpu", tabulated=False)
     with pytest.raises(ValueError, match="wi contains a zero-length direction"):
@@ -361,7 +364,7 @@ def test_environment_lit_renders_agree_statistically(material, model, shape):
         ("rough-coat-rough-copper", "belcour", {}),
         ("anisotropic-coat-metal", "belcour", {}),
         ("three-layer", "steinberg", {}),
-        ("gold-clearcoat", "steinberg", {"variant": "improved"}),
+        ("gold-clearcoat", "steinberg", {"conductor_interreflection": True}),
         ("varnished-diffuse", "weidlich_wilkie", {}),
         ("rough-coat-rough-copper", "weidlich_wilkie", {"conductor_interreflection": True}),
         ("car-paint", "weidlich_wilkie", {}),

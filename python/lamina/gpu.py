@@ -39,10 +39,16 @@ def models() -> list[str]:
     return list(_lamina.gpu_models()) if hasattr(_lamina, "gpu_models") else []
 
 
-def use_gpu(device: str, model: str | None) -> bool:
-    """Whether `device` means the GPU for `model` (None: Oat's materials, which always run there): "gpu" always
-    (RuntimeError when there is no adapter, saying how to get one), "auto" when there is a hardware GPU (not
-    lavapipe) and the model runs on it, "cpu" never."""
+def cpu_only(options: dict) -> bool:
+    """Whether model options switch on transport_fit, which runs on the CPU only: itself, or through
+    variant="improved" (models/options.rs, `improved`)."""
+    return bool(options.get("transport_fit", options.get("variant") == "improved"))
+
+
+def use_gpu(device: str, model: str | None, options: dict | None = None) -> bool:
+    """Whether `device` means the GPU for `model` (None: Oat's materials, which always run there) with `options`:
+    "gpu" always (RuntimeError when there is no adapter, saying how to get one), "auto" when there is a hardware GPU
+    (not lavapipe) and the model runs on it with these options, "cpu" never."""
     if device not in DEVICES:
         raise ValueError(f"device must be one of {DEVICES}, got {device!r}")
     if device == "cpu":
@@ -52,7 +58,8 @@ def use_gpu(device: str, model: str | None) -> bool:
         if info is None:
             raise RuntimeError(f"device='gpu': {why}")
         return True
-    return info is not None and info["device_type"] != "Cpu" and (model is None or model in models())
+    runs = model is None or (model in models() and not cpu_only(options or {}))
+    return info is not None and info["device_type"] != "Cpu" and runs
 
 
 def resident_throughput(stack, wi, wo, model: str = "microfacet", repeats: int = 5, **options) -> float:

@@ -351,7 +351,7 @@ def render(
             f"device='gpu' renders the models {_gpu.models()}; per-element textures and the reference run on the "
             "CPU: use device='cpu' or 'auto'"
         )
-    if on_gpu and _gpu.use_gpu(device, m.name):
+    if on_gpu and _gpu.use_gpu(device, m.name, options):
         out = _lamina.render_gpu(layers, m.name, options, shape, camera, specs, width, height, env, spp, seed)
         return out[0] if single else out
     out = np.empty((len(items), height, width, 3), dtype=np.float32)

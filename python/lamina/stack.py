@@ -123,7 +123,7 @@ class Stack:
         if tolerance is not None:
             raise TypeError(f"tolerance applies to model='auto' only, got model={model!r}")
         m, options, inputs = self._split(model, kwargs)
-        on_gpu = self._on_gpu(device, m.name, inputs)
+        on_gpu = self._on_gpu(device, m.name, inputs, options)
         if m.name == "reference":
             return self.reference(wi, wo, wavelengths=wavelengths, samples=samples, seed=seed, **options)[0]
         wl = _wavelengths(wavelengths)
@@ -148,7 +148,7 @@ class Stack:
         mixture from the same u)."""
         m, options, inputs = self._split(model, kwargs)
         wl = _wavelengths(wavelengths)
-        if self._on_gpu(device, m.name, inputs):
+        if self._on_gpu(device, m.name, inputs, options):
             wo, u = broadcast(wo=(wo, 3), u=(u, 3))
             out = _lamina.sample_gpu(self._resolve(wl), self.ext_ior, m.name, wo, u, options)
             return out[..., :3], out[..., 3:-1], out[..., -1]
@@ -170,13 +170,14 @@ class Stack:
                 f"pdf takes no per-element inputs (the sampling mixture does not depend on them), got {list(inputs)}"
             )
         wi, wo = broadcast(wi=(wi, 3), wo=(wo, 3))
-        run = _lamina.pdf_gpu if self._on_gpu(device, m.name, {}) else _lamina.pdf
+        run = _lamina.pdf_gpu if self._on_gpu(device, m.name, {}, options) else _lamina.pdf
         return run(self._resolve(_wavelengths(wavelengths)), self.ext_ior, m.name, wi, wo, options)[..., 0]
 
     @staticmethod
-    def _on_gpu(device: str, model: str, inputs: dict) -> bool:
-        """Whether `device` means the GPU for `model` (gpu.use_gpu), which takes no per-element inputs."""
-        if not _gpu.use_gpu(device, model):
+    def _on_gpu(device: str, model: str, inputs: dict, options: dict) -> bool:
+        """Whether `device` means the GPU for `model` with `options` (gpu.use_gpu), which takes no per-element
+        inputs."""
+        if not _gpu.use_gpu(device, model, options):
             return False
         if inputs:
             raise ValueError(f"device={device!r}: per-element inputs run on the CPU only; use device='cpu'")

@@ -571,6 +571,12 @@ pub fn albedo_scaling_kernel(p: &albedo_scaling::Prepared) -> Kernel {
 
 /// A prepared model's kernel, or why it does not run on the GPU.
 pub fn kernel(model: &str, stack: &Stack, opts: &Options) -> Result<Kernel> {
+    if opts.transport_fit {
+        return value_error(format!(
+            "model {model:?} with transport_fit (variant='improved') runs on the CPU only; use device='cpu', or \
+             transport_fit=False on the GPU"
+        ));
+    }
     match model {
         "microfacet" => Ok(microfacet_kernel(&microfacet::prepare(stack, opts)?)),
         "belcour" => belcour_kernel(&belcour::prepare(stack, opts)?),

@@ -15,6 +15,7 @@ pub mod sample;
 pub mod single_pass;
 pub mod steinberg;
 pub mod tabulated;
+pub mod transport_fit;
 pub mod weidlich_wilkie;
 
 pub use options::{OptionKind, OptionSpec, Options, Value};
@@ -142,7 +143,11 @@ pub fn prepare(model: &str, stack: &Stack, opts: &Options) -> Result<Arc<dyn Mod
             stack.channels
         ));
     }
-    let prepared: Arc<dyn Model> = Arc::from((info.prepare)(stack, opts)?);
+    let mut prepared = (info.prepare)(stack, opts)?;
+    if opts.transport_fit {
+        prepared = transport_fit::fit(prepared, stack)?;
+    }
+    let prepared: Arc<dyn Model> = Arc::from(prepared);
     let mut cache = CACHE.lock().unwrap_or_else(|e| e.into_inner());
     cache.insert(0, (key, prepared.clone()));
     cache.truncate(CACHED);

@@ -63,6 +63,8 @@ pub struct Options {
     pub conductor_interreflection: bool,
     /// Belcour, Steinberg: rough interfaces transmit what single-scattering microfacets do (tables::steinberg's T).
     pub microfacet_transmission: bool,
+    /// Belcour, Steinberg, Weidlich–Wilkie: f ← s f + a fitted over the azimuth to the adding-doubling solution.
+    pub transport_fit: bool,
     /// Elek's patina (with the per-element input `mask`): smoothstep centre and half-width, and the tarnish of the
     /// base under the patina per channel.
     pub extent: f64,
@@ -90,6 +92,7 @@ impl Default for Options {
             interreflection: false,
             microfacet_transmission: false,
             conductor_interreflection: false,
+            transport_fit: false,
             extent: 0.5,
             transition: 0.1,
             tint: vec![1.0],
@@ -155,6 +158,13 @@ pub const MICROFACET_TRANSMISSION: OptionSpec = flag(
      lamina's table) instead of 1 − R or the mean Fresnel transmission",
 );
 
+pub const TRANSPORT_FIT: OptionSpec = flag(
+    "transport_fit",
+    false,
+    "lamina's correction: at each (θi, θo), f ← s f + a fitted over the azimuth to the stack's adding-doubling \
+     solution (its mean exact: the light the model misses added, its lobes' energy set); isotropic stacks, CPU only",
+);
+
 /// `variant`: "published" (the default) or "improved", which switches on the corrections that `improved` lists
 /// for the model; options given beside it still override them.
 pub const fn variant(improved: &'static str) -> OptionSpec {
@@ -169,9 +179,7 @@ pub const fn variant(improved: &'static str) -> OptionSpec {
 /// (docs/validation.md, "lamina's corrections, one at a time").
 pub fn improved(model: &str) -> &'static [&'static str] {
     match model {
-        "belcour" => &["microfacet_transmission"],
-        "steinberg" => &["interreflection", "conductor_interreflection"],
-        "weidlich_wilkie" => &["interreflection"],
+        "belcour" | "steinberg" | "weidlich_wilkie" => &["transport_fit"],
         _ => &[],
     }
 }
@@ -282,6 +290,7 @@ impl Options {
             "interreflection" => self.interreflection = flag,
             "microfacet_transmission" => self.microfacet_transmission = flag,
             "conductor_interreflection" => self.conductor_interreflection = flag,
+            "transport_fit" => self.transport_fit = flag,
             "variant" => {} // its corrections are set in `parse`
             "scaling" => self.scaling_reciprocal = text() == "reciprocal",
             "roughening" => self.roughening = flag,

@@ -18,12 +18,14 @@
 //! | `interreflection` | bool   | `false`             | lamina's correction: diffuse-base inter-reflections 1/(1 − ρ r) |
 //! | `conductor_interreflection` | bool | `false`   | lamina's correction: conductor-base inter-reflections       |
 //! | `microfacet_transmission` | bool | `false`     | lamina's correction: T (masking included) instead of t      |
-//! | `variant`         | string | `published`         | `improved`: both inter-reflection corrections               |
+//! | `transport_fit`   | bool   | `false`             | lamina's correction: f ← s f + a fitted to the stack's adding-doubling |
+//! | `variant`         | string | `published`         | `improved`: with `transport_fit` (models/transport_fit.rs)  |
 //!
 //! The distribution is GGX (the tables are GGX). Sampling: the shared single-pass mixture (models/single_pass.rs).
 
 use super::options::{
     variant, CLAMP_ROUGHNESS, CONDUCTOR_INTERREFLECTION, ETA2, FRESNEL, G2, INTERREFLECTION, MICROFACET_TRANSMISSION,
+    TRANSPORT_FIT,
 };
 use super::single_pass::{refracted_up, Interface, Passage, SpLayer, Transport, Walk};
 use super::{InputSpec, Model, ModelInfo, OptionKind, OptionSpec, Options, Properties, Proposal};
@@ -58,7 +60,8 @@ pub const INFO: ModelInfo = ModelInfo {
         INTERREFLECTION,
         CONDUCTOR_INTERREFLECTION,
         MICROFACET_TRANSMISSION,
-        variant("published: Steinberg's model (lamina's defaults); improved: with interreflection and conductor_interreflection"),
+        TRANSPORT_FIT,
+        variant("published: Steinberg's model (lamina's defaults); improved: with transport_fit"),
     ] as &[OptionSpec],
     inputs: &[] as &[InputSpec],
     properties: Properties { reciprocal: false, energy_conserving: false, anisotropic: true, spectral: true },

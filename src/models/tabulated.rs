@@ -59,19 +59,23 @@ fn cache_name(stack: &Stack, opts: &Options) -> String {
     format!("tabulated-{:016x}.f32", h.finish())
 }
 
+/// The first layer of `stack` with anisotropic roughness: its index and (αx, αy).
+pub(crate) fn anisotropic_layer(stack: &Stack) -> Option<(usize, (f64, f64))> {
+    stack.layers.iter().enumerate().find_map(|(i, layer)| match layer {
+        Layer::Dielectric { alpha, .. } | Layer::Conductor { alpha, .. } if alpha.0 != alpha.1 => Some((i, *alpha)),
+        _ => None,
+    })
+}
+
 pub fn prepare(stack: &Stack, opts: &Options) -> Result<Prepared> {
-    for (i, layer) in stack.layers.iter().enumerate() {
-        if let Layer::Dielectric { alpha, .. } | Layer::Conductor { alpha, .. } = layer {
-            if alpha.0 != alpha.1 {
-                return value_error(format!(
-                    "model 'tabulated' tabulates isotropic stacks: layer {i} ({}) has roughness ({}, {}); use \
-                     'belcour' or the reference for anisotropic stacks",
-                    layer.name(),
-                    alpha.0,
-                    alpha.1
-                ));
-            }
-        }
+    if let Some((i, alpha)) = anisotropic_layer(stack) {
+        return value_error(format!(
+            "model 'tabulated' tabulates isotropic stacks: layer {i} ({}) has roughness ({}, {}); use 'belcour' or \
+             the reference for anisotropic stacks",
+            stack.layers[i].name(),
+            alpha.0,
+            alpha.1
+        ));
     }
     let len = PAIRS * N_PHI * stack.channels;
     let table = cached(&cache_name(stack, opts), len, || tabulate(stack, opts.distribution, opts.g2));
@@ -115,7 +119,7 @@ pub fn prepare(stack: &Stack, opts: &Options) -> Result<Prepared> {
 
 /// The table coordinate x = √(1 − cos θ) of zenith cosine z.
 #[inline(always)]
-fn zenith(z: f64) -> f64 {
+pub(crate) fn zenith(z: f64) -> f64 {
     (1.0 - z).max(0.0).sqrt()
 }
 

@@ -23,7 +23,8 @@
 //! | `extent`          | float  | 0.5        | patina: smoothstep centre over the `mask` values                     |
 //! | `transition`      | float  | 0.1        | patina: smoothstep half-width                                        |
 //! | `tint`            | floats | 1          | patina: tarnish of the base under the patina, per channel            |
-//! | `variant`         | string | `published`| `improved`: with `interreflection`                                   |
+//! | `transport_fit`   | bool   | `false`    | lamina's correction: f ← s f + a fitted to the stack's adding-doubling |
+//! | `variant`         | string | `published`| `improved`: with `transport_fit` (models/transport_fit.rs)           |
 //!
 //! Per-element inputs: `flake_normal` (..., 3) and `distance` (...) tilt the base normal to
 //! normalize(flake + max(distance, 1) ẑ) (car paint; a base tilted below the horizon reflects nothing); `mask`
@@ -32,7 +33,7 @@
 
 use super::options::{
     variant, OptionKind, CLAMP_ROUGHNESS, CONDUCTOR_INTERREFLECTION, DISTRIBUTIONS, ETA2, FRESNEL, G2_FORMS,
-    INTERREFLECTION,
+    INTERREFLECTION, TRANSPORT_FIT,
 };
 use super::single_pass::{self, refracted_up, Interface, Passage, SpLayer, Transport, Walk};
 use super::{eval_rows, InputSpec, Inputs, Model, ModelInfo, OptionSpec, Options, Properties, Proposal, BLOCK};
@@ -83,7 +84,8 @@ pub const INFO: ModelInfo = ModelInfo {
             kind: OptionKind::Channels { lo: 0.0, hi: 1.0, default: 1.0 },
             doc: "patina (with mask): tarnish of the base under the patina, per channel, lerp(1, tint, coverage)",
         },
-        variant("published: Weidlich–Wilkie / Elek (lamina's defaults); improved: with interreflection"),
+        TRANSPORT_FIT,
+        variant("published: Weidlich–Wilkie / Elek (lamina's defaults); improved: with transport_fit"),
     ] as &[OptionSpec],
     inputs: &[
         InputSpec {

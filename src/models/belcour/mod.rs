@@ -30,7 +30,8 @@
 //! | `tir`       | string | `off`               | the code's TIR step: `off`, `transmittance` or `fraction`            |
 //! | `tabulated` | bool   | `true`              | interpolate the adding-doubling from a table built once per stack    |
 //! | `microfacet_transmission` | bool | `false` | lamina's correction: T of a rough interface from lamina's table, not 1 − R |
-//! | `variant`   | string | `published`         | `improved`: lamina's corrections (`microfacet_transmission`)         |
+//! | `transport_fit` | bool | `false`           | lamina's correction: f ← s f + a fitted to the stack's adding-doubling (transport_fit.rs) |
+//! | `variant`   | string | `published`         | `improved`: lamina's corrections (`transport_fit`)                   |
 //!
 //! Layout: `cov.rs` (covariances, roughness maps), `adding.rs` (the adding-doubling), `table.rs` (its table and
 //! the block evaluator). Sampling: each rough lobe by its GGX visible normals, weighted by its energy, and the
@@ -43,7 +44,7 @@ mod table;
 pub use adding::{Tir, Variant};
 pub use cov::{alpha_from_variance, hg_variance, variance_from_alpha, Cov, Lobe};
 
-use super::options::{choice, flag, variant, G2, MICROFACET_TRANSMISSION};
+use super::options::{choice, flag, variant, G2, MICROFACET_TRANSMISSION, TRANSPORT_FIT};
 use super::{InputSpec, Inputs, Model, ModelInfo, OptionSpec, Options, Properties, Proposal};
 use crate::bsdf;
 use crate::error::{value_error, Result};
@@ -66,7 +67,8 @@ pub const INFO: ModelInfo = ModelInfo {
         choice("tir", &["off", "transmittance", "fraction"], "off", "the reference code's TIR step: off, its table (repeats the Fresnel factor) or the totally reflected fraction"),
         flag("tabulated", true, "interpolate the adding-doubling from a table over the viewing direction, built once per stack"),
         MICROFACET_TRANSMISSION,
-        variant("published: Belcour 2018; improved: with lamina's correction microfacet_transmission"),
+        TRANSPORT_FIT,
+        variant("published: Belcour 2018; improved: with lamina's correction transport_fit"),
     ] as &[OptionSpec],
     inputs: &[] as &[InputSpec],
     properties: Properties { reciprocal: false, energy_conserving: false, anisotropic: true, spectral: true },

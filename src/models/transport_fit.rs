@@ -1,0 +1,149 @@
+//! lamina's correction `transport_fit` (belcour, steinberg, weidlich_wilkie; what `variant="improved"` switches on):
+//! a single-pass model keeps its lobes, fitted at every pair of zenith angles to the stack's own light transport.
+//! Preparing it solves the stack by adding-doubling (`model="tabulated"`'s table, cached on disk, with the reference's
+//! default microsurface) and fits, per channel at each of that table's (θi, θo) nodes, the model's f over the azimuth:
+//!   f ← s f + a,   s = Cov_φ(f, f_ad) / Var_φ(f) (least squares),   a = E_φ[f_ad] − s E_φ[f],
+//! with s within [0, E_φ[f_ad] / E_φ[f]] so that a ≥ 0. The azimuthal mean of f is the adding-doubling one: the light
+//! the model misses (multiple scattering in slabs, inter-reflections between layers) returns as a, spread evenly over
+//! the azimuth, and the energy of the model's own lobes is set by s. The azimuth φ′ (from the mirror plane) is sampled
+//! at φ′ = π t², t at AZIMUTHS midpoints, dense where narrow lobes peak. Evaluation interpolates (s, a) bilinearly in
+//! x = √(1 − cos θ), as the table does.
+//!
+//! The adding-doubling solver is isotropic: an anisotropic stack is evaluated as the model gives it. The fit is of
+//! the stack as prepared, so per-element inputs (flakes, the patina mask) raise a ValueError with it. CPU only.
+
+use super::sample::DEFENSIVE;
+use super::tabulated::{anisotropic_layer, zenith};
+use super::{Inputs, Model, Options, Proposal, BLOCK};
+use crate::error::{value_error, Result};
+use crate::stack::Stack;
+use crate::tables::adding_doubling::{Cells, NODES, N_THETA};
+use crate::tables::node;
+use glam::DVec3;
+use rayon::prelude::*;
+use std::f64::consts::PI;
+
+/// Azimuths per zenith pair of the fit (two blocks).
+const AZIMUTHS: usize = 2 * BLOCK;
+
+pub struct TransportFit {
+    model: Box<dyn Model>,
+    /// (s, a) per zenith node pair (light, view) and channel: fit[(i * NODES + o) * channels + c].
+    fit: Vec<[f64; 2]>,
+    channels: usize,
+    /// ∫ a cos θi dωi per view node, mean of the channels: the cosine lobe's share of the sampling mixture.
+    added_albedo: Vec<f64>,
+}
+
+/// The zenith cosine of table node k (x = k / N_THETA), kept above the horizon.
+fn node_cosine(k: usize) -> f64 {
+    (1.0 - (k as f64 / N_THETA as f64).powi(2)).max(1e-3)
+}
+
+/// `model` fitted to the transport of `stack` (module doc); an anisotropic stack's model is returned as it is.
+pub fn fit(model: Box<dyn Model>, stack: &Stack) -> Result<Box<dyn Model>> {
+    if anisotropic_layer(stack).is_some() {
+        return Ok(model);
+    }
+    let exact = (super::tabulated::INFO.prepare)(stack, &Options::default())?;
+    let ch = stack.channels;
+    // φ′ = π t² from the mirror plane, t at midpoints; weights ∝ dφ′ = 2π t dt, summing to 1.
+    let t: Vec<f64> = (0..AZIMUTHS).map(|p| (p as f64 + 0.5) / AZIMUTHS as f64).collect();
+    let total: f64 = t.iter().sum();
+    let weight: Vec<f64> = t.iter().map(|t| t / total).collect();
+    let (cos_phi, sin_phi): (Vec<f64>, Vec<f64>) =
+        t.iter().map(|t| (PI + PI * t * t).sin_cos()).map(|(s, c)| (c, s)).unzip();
+    let fit: Vec<[f64; 2]> = (0..NODES)
+        .into_par_iter()
+        .flat_map_iter(|i| {
+            let zi = node_cosine(i);
+            let wi = [[(1.0 - zi * zi).sqrt(); BLOCK], [0.0; BLOCK], [zi; BLOCK]];
+            let (cos_phi, sin_phi, weight) = (&cos_phi, &sin_phi, &weight);
+            let (model, exact) = (&model, &exact);
+            (0..NODES).flat_map(move |o| {
+                let zo = node_cosine(o);
+                let so = (1.0 - zo * zo).sqrt();
+                // Weighted sums per channel: E[f], E[f_ad], E[f²], E[f f_ad].
+                let mut sums = vec![[0.0; 4]; ch];
+                let (mut f, mut g) = (vec![0.0; BLOCK * ch], vec![0.0; BLOCK * ch]);
+                for b in 0..AZIMUTHS / BLOCK {
+                    let at = b * BLOCK..(b + 1) * BLOCK;
+                    let wo: [Vec<f64>; 3] = [
+                        cos_phi[at.clone()].iter().map(|c| so * c).collect(),
+                        sin_phi[at.clone()].iter().map(|s| so * s).collect(),
+                        vec![zo; BLOCK],
+                    ];
+                    let (wi, wo) = (wi.each_ref().map(|c| &c[..]), wo.each_ref().map(|c| &c[..]));
+                    f.fill(0.0);
+                    g.fill(0.0);
+                    model.eval_block(wi, wo, &[], &mut f);
+                    exact.eval_block(wi, wo, &[], &mut g);
+                    for (r, w) in weight[at].iter().enumerate() {
+                        for (c, s) in sums.iter_mut().enumerate() {
+                            let (f, g) = (f[r * ch + c], g[r * ch + c]);
+                            *s = [s[0] + w * f, s[1] + w * g, s[2] + w * f * f, s[3] + w * f * g];
+                        }
+                    }
+                }
+                sums.into_iter().map(|[f, g, ff, fg]| {
+                    // The least-squares slope, pulled towards the mean ratio where f hardly varies over φ.
+                    let ratio = if f > 0.0 { g / f } else { 0.0 };
+                    let eps = 1e-4 * f * f + 1e-300;
+                    let s = ((fg - f * g + eps * ratio) / (ff - f * f + eps)).clamp(0.0, ratio);
+                    [s, g - s * f]
+                })
+            })
+        })
+        .collect();
+    let cells = Cells::new();
+    let added_albedo = (0..NODES)
+        .map(|o| {
+            let a = |i: usize| (0..ch).map(|c| fit[(i * NODES + o) * ch + c][1]).sum::<f64>() / ch as f64;
+            (0..N_THETA).map(|j| 2.0 * PI * cells.w[j] * 0.5 * (a(j) + a(j + 1))).sum()
+        })
+        .collect();
+    Ok(Box::new(TransportFit { model, fit, channels: ch, added_albedo }))
+}
+
+impl Model for TransportFit {
+    fn eval_block(&self, wi: [&[f64]; 3], wo: [&[f64]; 3], inputs: &Inputs, out: &mut [f64]) {
+        self.model.eval_block(wi, wo, inputs, out);
+        let ch = self.channels;
+        for (r, out) in out.chunks_exact_mut(ch).enumerate() {
+            if wi[2][r] <= 0.0 || wo[2][r] <= 0.0 {
+                continue;
+            }
+            let ((i, fi), (o, fo)) = (node(zenith(wi[2][r]), NODES), node(zenith(wo[2][r]), NODES));
+            let at = |i: usize, o: usize, c: usize| self.fit[(i * NODES + o) * ch + c];
+            let lerp = |a: [f64; 2], b: [f64; 2], t: f64| [a[0] + t * (b[0] - a[0]), a[1] + t * (b[1] - a[1])];
+            for (c, out) in out.iter_mut().enumerate() {
+                let [s, a] =
+                    lerp(lerp(at(i, o, c), at(i + 1, o, c), fi), lerp(at(i, o + 1, c), at(i + 1, o + 1, c), fi), fo);
+                *out = s * *out + a;
+            }
+        }
+    }
+
+    fn proposals(&self, wo: DVec3) -> Vec<(f64, Proposal)> {
+        let mut lobes = self.model.proposals(wo);
+        let (o, f) = node(zenith(wo.z), NODES);
+        let added = (1.0 - f) * self.added_albedo[o] + f * self.added_albedo[o + 1];
+        // The model's mixture sums to its lobes' energies over (1 − DEFENSIVE); the added light is one more lobe.
+        lobes.push((added / (1.0 - DEFENSIVE), Proposal::Cosine));
+        lobes
+    }
+
+    fn specular(&self, wo: DVec3, out: &mut [f64]) {
+        self.model.specular(wo, out)
+    }
+
+    fn check_inputs(&self, given: &[bool]) -> Result<()> {
+        if given.iter().any(|&g| g) {
+            return value_error(
+                "transport_fit fits the stack as prepared, without per-element inputs; pass transport_fit=False \
+                 (or variant='published') to use them",
+            );
+        }
+        self.model.check_inputs(given)
+    }
+}
