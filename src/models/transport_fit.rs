@@ -3,7 +3,7 @@
 //! Preparing it solves the stack by adding-doubling (`model="tabulated"`'s table, cached on disk, with the reference's
 //! default microsurface) and fits, per channel at each of that table's (θi, θo) nodes, the model's f over the azimuth:
 //!   f ← s f + a,   s = Cov_φ(f, f_ad) / Var_φ(f) (least squares),   a = E_φ[f_ad] − s E_φ[f],
-//! with s within [0, E_φ[f_ad] / E_φ[f]] so that a ≥ 0. The azimuthal mean of f is the adding-doubling one: the light
+//! with s within [0, min(E_φ[f_ad] / E_φ[f], 4)] so that a ≥ 0. The azimuthal mean of f is the adding-doubling one: the light
 //! the model misses (multiple scattering in slabs, inter-reflections between layers) returns as a, spread evenly over
 //! the azimuth, and the energy of the model's own lobes is set by s. The azimuth φ′ (from the mirror plane) is sampled
 //! at φ′ = π t², t at AZIMUTHS midpoints, dense where narrow lobes peak. Evaluation interpolates (s, a) bilinearly in
@@ -25,11 +25,14 @@ use std::f64::consts::PI;
 
 /// Azimuths per zenith pair of the fit (two blocks).
 const AZIMUTHS: usize = 2 * BLOCK;
+/// The largest scale s of the model's lobes: a bound, so that a node where the model has next to nothing cannot
+/// blow up its neighbours through the interpolation (the published models' energies are off by less than 2×).
+const S_MAX: f64 = 4.0;
 
 pub struct TransportFit {
     model: Box<dyn Model>,
     /// (s, a) per zenith node pair (light, view) and channel: fit[(i * NODES + o) * channels + c].
-    fit: Vec<[f64; 2]>,
+    fit: Vec<[f32; 2]>,
     channels: usize,
     /// ∫ a cos θi dωi per view node, mean of the channels: the cosine lobe's share of the sampling mixture.
     added_albedo: Vec<f64>,
@@ -53,7 +56,7 @@ pub fn fit(model: Box<dyn Model>, stack: &Stack) -> Result<Box<dyn Model>> {
     let weight: Vec<f64> = t.iter().map(|t| t / total).collect();
     let (cos_phi, sin_phi): (Vec<f64>, Vec<f64>) =
         t.iter().map(|t| (PI + PI * t * t).sin_cos()).map(|(s, c)| (c, s)).unzip();
-    let fit: Vec<[f64; 2]> = (0..NODES)
+    let fit: Vec<[f32; 2]> = (0..NODES)
         .into_par_iter()
         .flat_map_iter(|i| {
             let zi = node_cosine(i);
@@ -86,11 +89,12 @@ pub fn fit(model: Box<dyn Model>, stack: &Stack) -> Result<Box<dyn Model>> {
                     }
                 }
                 sums.into_iter().map(|[f, g, ff, fg]| {
-                    // The least-squares slope, pulled towards the mean ratio where f hardly varies over φ.
-                    let ratio = if f > 0.0 { g / f } else { 0.0 };
+                    // The least-squares slope, pulled towards the mean ratio where f hardly varies over φ, and at
+                    // most S_MAX: where the model has next to nothing, the exact mean is added instead.
+                    let ratio = if f > 0.0 { (g / f).min(S_MAX) } else { 0.0 };
                     let eps = 1e-4 * f * f + 1e-300;
                     let s = ((fg - f * g + eps * ratio) / (ff - f * f + eps)).clamp(0.0, ratio);
-                    [s, g - s * f]
+                    [s as f32, (g - s * f).max(0.0) as f32]
                 })
             })
         })
@@ -98,30 +102,47 @@ pub fn fit(model: Box<dyn Model>, stack: &Stack) -> Result<Box<dyn Model>> {
     let cells = Cells::new();
     let added_albedo = (0..NODES)
         .map(|o| {
-            let a = |i: usize| (0..ch).map(|c| fit[(i * NODES + o) * ch + c][1]).sum::<f64>() / ch as f64;
+            let a = |i: usize| (0..ch).map(|c| fit[(i * NODES + o) * ch + c][1] as f64).sum::<f64>() / ch as f64;
             (0..N_THETA).map(|j| 2.0 * PI * cells.w[j] * 0.5 * (a(j) + a(j + 1))).sum()
         })
         .collect();
     Ok(Box::new(TransportFit { model, fit, channels: ch, added_albedo }))
 }
 
-impl Model for TransportFit {
-    fn eval_block(&self, wi: [&[f64]; 3], wo: [&[f64]; 3], inputs: &Inputs, out: &mut [f64]) {
-        self.model.eval_block(wi, wo, inputs, out);
-        let ch = self.channels;
+impl TransportFit {
+    /// s f + a for a block of rows that the model has evaluated into `out`: the zenith coordinates in vector lanes
+    /// first, then the fit's four corners per row, gathered (rows below the horizon keep the model's f).
+    #[inline(always)]
+    fn eval_columns(&self, wi: [&[f64]; 3], wo: [&[f64]; 3], out: &mut [f64]) {
+        let (n, ch) = (wi[0].len(), self.channels);
+        let ([mut i, mut o], [mut fi, mut fo]) = ([[0usize; BLOCK]; 2], [[0.0; BLOCK]; 2]);
+        for r in 0..n {
+            (i[r], fi[r]) = node(zenith(wi[2][r]), NODES);
+            (o[r], fo[r]) = node(zenith(wo[2][r]), NODES);
+        }
         for (r, out) in out.chunks_exact_mut(ch).enumerate() {
             if wi[2][r] <= 0.0 || wo[2][r] <= 0.0 {
                 continue;
             }
-            let ((i, fi), (o, fo)) = (node(zenith(wi[2][r]), NODES), node(zenith(wo[2][r]), NODES));
-            let at = |i: usize, o: usize, c: usize| self.fit[(i * NODES + o) * ch + c];
-            let lerp = |a: [f64; 2], b: [f64; 2], t: f64| [a[0] + t * (b[0] - a[0]), a[1] + t * (b[1] - a[1])];
+            let record = |di: usize, do_: usize| &self.fit[((i[r] + di) * NODES + o[r] + do_) * ch..][..ch];
+            let weights = [(1.0 - fi[r]) * (1.0 - fo[r]), fi[r] * (1.0 - fo[r]), (1.0 - fi[r]) * fo[r], fi[r] * fo[r]];
+            let corners = [record(0, 0), record(1, 0), record(0, 1), record(1, 1)];
             for (c, out) in out.iter_mut().enumerate() {
-                let [s, a] =
-                    lerp(lerp(at(i, o, c), at(i + 1, o, c), fi), lerp(at(i, o + 1, c), at(i + 1, o + 1, c), fi), fo);
+                let (mut s, mut a) = (0.0, 0.0);
+                for (w, corner) in weights.iter().zip(&corners) {
+                    s += w * corner[c][0] as f64;
+                    a += w * corner[c][1] as f64;
+                }
                 *out = s * *out + a;
             }
         }
+    }
+}
+
+impl Model for TransportFit {
+    fn eval_block(&self, wi: [&[f64]; 3], wo: [&[f64]; 3], inputs: &Inputs, out: &mut [f64]) {
+        self.model.eval_block(wi, wo, inputs, out);
+        super::simd_columns!(TransportFit, self, wi, wo, out)
     }
 
     fn proposals(&self, wo: DVec3) -> Vec<(f64, Proposal)> {
