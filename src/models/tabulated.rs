@@ -93,8 +93,8 @@ pub fn prepare(stack: &Stack, opts: &Options) -> Result<Prepared> {
         }
     }
     let cells = Cells::new();
-    // Σ_cells w_o ∫ f dφ over the full circle (cell values: the mean of the nodes at its edges; trapezoids over
-    // the nodes' φ ∈ [0, π], twice), mean of the channels.
+    // ∫ f cos θo dωo: over θo by `Cells::node_integral`, over the full circle by trapezoids over the nodes'
+    // φ ∈ [0, π], twice; mean of the channels.
     let ch = stack.channels;
     let value = |i: usize, o: usize, p: usize| {
         let k = (pair(i, o) * N_PHI + p) * ch;
@@ -103,14 +103,8 @@ pub fn prepare(stack: &Stack, opts: &Options) -> Result<Prepared> {
     let phi: Vec<f64> = (0..N_PHI).map(|p| 2.0 * (p as f64 / (N_PHI - 1) as f64).asin()).collect();
     let albedo_below_top = (0..NODES)
         .map(|i| {
-            (0..N_THETA)
-                .map(|o| {
-                    let cell = |p: usize| 0.5 * (value(i, o, p) + value(i, o + 1, p));
-                    let integral: f64 =
-                        (0..N_PHI - 1).map(|p| 0.5 * (cell(p) + cell(p + 1)) * (phi[p + 1] - phi[p])).sum();
-                    cells.w[o] * 2.0 * integral
-                })
-                .sum()
+            let over_theta = |p: usize| 2.0 * cells.node_integral(|o| value(i, o, p));
+            (0..N_PHI - 1).map(|p| 0.5 * (over_theta(p) + over_theta(p + 1)) * (phi[p + 1] - phi[p])).sum()
         })
         .collect();
     let eta = stack.interfaces().swap_remove(0).eta;

@@ -53,49 +53,25 @@ pub fn fit(model: Box<dyn Model>, stack: &Stack) -> Result<Box<dyn Model>> {
     // φ′ = π t² from the mirror plane, t at midpoints; weights ∝ dφ′ = 2π t dt, summing to 1.
     let t: Vec<f64> = (0..AZIMUTHS).map(|p| (p as f64 + 0.5) / AZIMUTHS as f64).collect();
     let total: f64 = t.iter().sum();
-    let weight: Vec<f64> = t.iter().map(|t| t / total).collect();
-    let (cos_phi, sin_phi): (Vec<f64>, Vec<f64>) =
-        t.iter().map(|t| (PI + PI * t * t).sin_cos()).map(|(s, c)| (c, s)).unzip();
-    let fit: Vec<[f32; 2]> = (0..NODES)
+    let azimuths: Vec<(f64, f64, f64)> = t
+        .iter()
+        .map(|t| {
+            let (sin, cos) = (PI + PI * t * t).sin_cos();
+            (cos, sin, t / total)
+        })
+        .collect();
+    let fit: Vec<[f32; 2]> = (0..NODES * NODES)
         .into_par_iter()
-        .flat_map_iter(|i| {
-            let zi = node_cosine(i);
-            let wi = [[(1.0 - zi * zi).sqrt(); BLOCK], [0.0; BLOCK], [zi; BLOCK]];
-            let (cos_phi, sin_phi, weight) = (&cos_phi, &sin_phi, &weight);
-            let (model, exact) = (&model, &exact);
-            (0..NODES).flat_map(move |o| {
-                let zo = node_cosine(o);
-                let so = (1.0 - zo * zo).sqrt();
-                // Weighted sums per channel: E[f], E[f_ad], E[f²], E[f f_ad].
-                let mut sums = vec![[0.0; 4]; ch];
-                let (mut f, mut g) = (vec![0.0; BLOCK * ch], vec![0.0; BLOCK * ch]);
-                for b in 0..AZIMUTHS / BLOCK {
-                    let at = b * BLOCK..(b + 1) * BLOCK;
-                    let wo: [Vec<f64>; 3] = [
-                        cos_phi[at.clone()].iter().map(|c| so * c).collect(),
-                        sin_phi[at.clone()].iter().map(|s| so * s).collect(),
-                        vec![zo; BLOCK],
-                    ];
-                    let (wi, wo) = (wi.each_ref().map(|c| &c[..]), wo.each_ref().map(|c| &c[..]));
-                    f.fill(0.0);
-                    g.fill(0.0);
-                    model.eval_block(wi, wo, &[], &mut f);
-                    exact.eval_block(wi, wo, &[], &mut g);
-                    for (r, w) in weight[at].iter().enumerate() {
-                        for (c, s) in sums.iter_mut().enumerate() {
-                            let (f, g) = (f[r * ch + c], g[r * ch + c]);
-                            *s = [s[0] + w * f, s[1] + w * g, s[2] + w * f * f, s[3] + w * f * g];
-                        }
-                    }
-                }
-                sums.into_iter().map(|[f, g, ff, fg]| {
-                    // The least-squares slope, pulled towards the mean ratio where f hardly varies over φ, and at
-                    // most S_MAX: where the model has next to nothing, the exact mean is added instead.
-                    let ratio = if f > 0.0 { (g / f).min(S_MAX) } else { 0.0 };
-                    let eps = 1e-4 * f * f + 1e-300;
-                    let s = ((fg - f * g + eps * ratio) / (ff - f * f + eps)).clamp(0.0, ratio);
-                    [s as f32, (g - s * f).max(0.0) as f32]
-                })
+        .flat_map_iter(|k| {
+            let moments =
+                azimuthal_moments(&*model, &*exact, node_cosine(k / NODES), node_cosine(k % NODES), &azimuths, ch);
+            moments.into_iter().map(|[f, g, ff, fg]| {
+                // The least-squares slope, pulled towards the mean ratio where f hardly varies over φ, and at most
+                // S_MAX: where the model has next to nothing, the exact mean is added instead.
+                let ratio = if f > 0.0 { (g / f).min(S_MAX) } else { 0.0 };
+                let eps = 1e-4 * f * f + 1e-300;
+                let s = ((fg - f * g + eps * ratio) / (ff - f * f + eps)).clamp(0.0, ratio);
+                [s as f32, (g - s * f).max(0.0) as f32]
             })
         })
         .collect();
@@ -103,10 +79,44 @@ pub fn fit(model: Box<dyn Model>, stack: &Stack) -> Result<Box<dyn Model>> {
     let added_albedo = (0..NODES)
         .map(|o| {
             let a = |i: usize| (0..ch).map(|c| fit[(i * NODES + o) * ch + c][1] as f64).sum::<f64>() / ch as f64;
-            (0..N_THETA).map(|j| 2.0 * PI * cells.w[j] * 0.5 * (a(j) + a(j + 1))).sum()
+            2.0 * PI * cells.node_integral(a)
         })
         .collect();
     Ok(Box::new(TransportFit { model, fit, channels: ch, added_albedo }))
+}
+
+/// The weighted moments over `azimuths` ((cos φ′, sin φ′, weight), φ′ from the mirror plane) of the model's f and
+/// the adding-doubling f_ad at zenith cosines (zi, zo), per channel: [E f, E f_ad, E f², E f f_ad].
+fn azimuthal_moments(
+    model: &dyn Model,
+    exact: &dyn Model,
+    zi: f64,
+    zo: f64,
+    azimuths: &[(f64, f64, f64)],
+    ch: usize,
+) -> Vec<[f64; 4]> {
+    let (si, so) = ((1.0 - zi * zi).sqrt(), (1.0 - zo * zo).sqrt());
+    let wi = [[si; BLOCK], [0.0; BLOCK], [zi; BLOCK]];
+    let mut moments = vec![[0.0; 4]; ch];
+    let (mut f, mut g) = (vec![0.0; BLOCK * ch], vec![0.0; BLOCK * ch]);
+    for block in azimuths.chunks(BLOCK) {
+        let n = block.len();
+        let column = |k: fn(&(f64, f64, f64)) -> f64| block.iter().map(|a| so * k(a)).collect::<Vec<f64>>();
+        let wo = [column(|a| a.0), column(|a| a.1), vec![zo; n]];
+        let (wi, wo) = (wi.each_ref().map(|c| &c[..n]), wo.each_ref().map(|c| &c[..]));
+        let (f, g) = (&mut f[..n * ch], &mut g[..n * ch]);
+        f.fill(0.0);
+        g.fill(0.0);
+        model.eval_block(wi, wo, &[], f);
+        exact.eval_block(wi, wo, &[], g);
+        for (r, &(_, _, w)) in block.iter().enumerate() {
+            for (c, m) in moments.iter_mut().enumerate() {
+                let (f, g) = (f[r * ch + c], g[r * ch + c]);
+                *m = [m[0] + w * f, m[1] + w * g, m[2] + w * f * f, m[3] + w * f * g];
+            }
+        }
+    }
+    moments
 }
 
 impl TransportFit {

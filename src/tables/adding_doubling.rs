@@ -85,6 +85,12 @@ impl Cells {
         &self.points[j * SUB..(j + 1) * SUB]
     }
 
+    /// ∫ v μ dμ over [0, 1] from v's values at the table's zenith nodes (`NODES`: the cells' edges), each cell
+    /// taking the mean of its two edges; 2π times it is the hemisphere's ∫ v cos θ dω.
+    pub fn node_integral(&self, v: impl Fn(usize) -> f64) -> f64 {
+        (0..N_THETA).map(|j| self.w[j] * 0.5 * (v(j) + v(j + 1))).sum()
+    }
+
     /// Average over cell j (projected solid angle) of g(μ).
     fn average(&self, j: usize, g: impl Fn(f64) -> f64) -> f64 {
         self.points(j).iter().map(|&(u, v)| v * g((1.0 - u).sqrt())).sum::<f64>() / self.w[j]
