@@ -40,7 +40,7 @@ VARIANTS = {
         {"cosines": "real"},
         {"jacobian": "j21"},
         {"energy": "fresnel"},
-        {"tabulated": False},
+        {"interpolated": False},
         {"g2": "separable"},
     ],
     "steinberg": [

@@ -1,15 +1,28 @@
 //! lamina: layered BRDF models for rendering research.
 //!
-//! Layout: `optics` (Fresnel, microfacet distributions, diffuse lobes) → `bsdf` (single rough interfaces) →
-//! `stack` (the layer stack description) → `models` (one module per model) → `reference` (the Monte Carlo ground
-//! truth, with `sampling`) → `python` (the NumPy bindings).
+//! Layout, each module using only those before it (tests/test_layout.py checks that no `use crate::` closes a cycle):
+//! - `error`, `interrupt` (Ctrl-C in long work), `cache` (the checked on-disk cache), `quadrature`, `sampling` (random numbers, direction sampling, MIS), `optics` (Fresnel, microfacet
+//!   distributions, diffuse lobes, Jacobians), `bsdf` (single rough interfaces), `stack` (the layer stack);
+//! - `transport`: a stack's boundaries and slabs as light transport sees them, one channel at a time;
+//! - `tables`: lamina's precomputed tables (FGD, Steinberg's, Elek's) and the adding-doubling solver;
+//! - `models`: the catalogue, one module per model, their shared machinery (`models/common`) and lamina's
+//!   corrections (`models/corrections`);
+//! - `reference`: the Monte Carlo ground truth;
+//! - `render`: the CPU renderer (scene, lights, environments, meshes, image files); `gpu`: the wgpu path (models and
+//!   renderer as WGSL compute shaders); `oat`: Oat 2006's gooey layers on both; `device`: which of them a call uses;
+//! - `python`: the thin NumPy bindings.
+//!
 //! Conventions are stated once in docs/conventions.md.
 
 pub mod bsdf;
+pub mod cache;
+pub mod device;
 pub mod error;
 #[cfg(feature = "gpu")]
 pub mod gpu;
+pub mod interrupt;
 pub mod models;
+pub mod oat;
 pub mod optics;
 pub mod quadrature;
 pub mod reference;
@@ -17,6 +30,7 @@ pub mod render;
 pub mod sampling;
 pub mod stack;
 pub mod tables;
+pub mod transport;
 
 #[cfg(feature = "python")]
 mod python;

@@ -10,77 +10,30 @@
 //! Interfaces are sampled exactly as their BSDFs are defined: visible normals, then reflection or refraction with
 //! probability F (weight G2/G1), smooth interfaces as deltas. Slabs use free-flight sampling with σ_t and
 //! Henyey–Greenstein scattering (weight σ_s/σ_t); non-scattering slabs attenuate by Beer–Lambert. Russian roulette
-//! keeps the estimate unbiased; paths reaching MAX_DEPTH are counted and reported.
+//! keeps the estimate unbiased; paths reaching MAX_DEPTH are counted and reported. The boundaries and slabs
+//! themselves are transport.rs's, which the adding-doubling solver shares.
+//!
+//! | Parameter      | Type   | Default             | Description                                                    |
+//! |----------------|--------|---------------------|----------------------------------------------------------------|
+//! | `distribution` | string | `ggx`               | microfacet distribution of every rough boundary                |
+//! | `g2`           | string | `height_correlated` | masking-shadowing of every rough boundary                      |
+//!
+//! (the options of `models::REFERENCE`, the reference's catalogue entry.)
 
 use crate::optics::diffuse;
-use crate::optics::distribution::{Distribution, G2Form, Microfacet};
+use crate::optics::distribution::{G2Form, Microfacet};
 use crate::optics::fresnel;
 use crate::optics::{reflect, refract};
-use crate::sampling::{cosine_hemisphere, henyey_greenstein, sample_henyey_greenstein, Rng};
-use crate::stack::{Layer, Stack};
+use crate::sampling::{cosine_hemisphere, henyey_greenstein, power_heuristic, sample_henyey_greenstein, Rng};
+use crate::transport::{Base, ChannelStack, Slab};
 use glam::DVec3;
 use rayon::prelude::*;
 use std::f64::consts::PI;
 
 /// Scattering events after which a path is truncated (and counted).
 pub const MAX_DEPTH: usize = 1000;
-/// Paths per deterministic reduction block.
-const BLOCK: usize = 4096;
-
-/// One interface as a path sees it: roughness and the relative IOR η_below / η_above.
-pub(crate) struct Interface {
-    pub mf: Microfacet,
-    pub eta: f64,
-}
-
-pub(crate) struct Slab {
-    pub thickness: f64,
-    pub sigma_a: f64,
-    pub sigma_s: f64,
-    pub g: f64,
-}
-
-pub(crate) enum Base {
-    Conductor { mf: Microfacet, eta: f64, k: f64 },
-    Diffuse { albedo: f64, sigma: f64 },
-}
-
-/// The stack resolved for one channel: interface i is the top of slab i; the base lies below the last slab.
-pub struct ChannelStack {
-    pub(crate) interfaces: Vec<Interface>,
-    pub(crate) slabs: Vec<Slab>,
-    pub(crate) base: Base,
-    pub(crate) g2: G2Form,
-}
-
-impl ChannelStack {
-    pub fn new(stack: &Stack, channel: usize, dist: Distribution, g2: G2Form) -> ChannelStack {
-        let (mut interfaces, mut slabs) = (Vec::new(), Vec::new());
-        for (layer, rel) in stack.layers.iter().zip(stack.interfaces()) {
-            let mf = layer.microfacet(dist);
-            match layer {
-                Layer::Dielectric { thickness, sigma_a, sigma_s, g, .. } => {
-                    interfaces.push(Interface { mf: mf.unwrap(), eta: rel.eta[channel] });
-                    slabs.push(Slab {
-                        thickness: *thickness,
-                        sigma_a: sigma_a[channel],
-                        sigma_s: sigma_s[channel],
-                        g: *g,
-                    });
-                }
-                Layer::Conductor { .. } => {
-                    let base = Base::Conductor { mf: mf.unwrap(), eta: rel.eta[channel], k: rel.kappa[channel] };
-                    return ChannelStack { interfaces, slabs, base, g2 };
-                }
-                Layer::Diffuse { albedo, roughness } => {
-                    let base = Base::Diffuse { albedo: albedo[channel], sigma: *roughness };
-                    return ChannelStack { interfaces, slabs, base, g2 };
-                }
-            }
-        }
-        unreachable!("validated stacks end in an opaque base")
-    }
-}
+/// Paths per parallel task, reduced in order (deterministic whatever the thread count).
+const PATHS_PER_TASK: usize = 4096;
 
 /// How a path ended.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -162,27 +115,6 @@ fn russian_roulette(weight: &mut f64, events: usize, rng: &mut Rng) -> bool {
     true
 }
 
-/// BSDF value f(w_light, w_view) of boundary `b` (interface b, or the base when b = number of interfaces): light
-/// arrives along w_light and leaves along w_view, both pointing away from the boundary.
-pub(crate) fn boundary_f(s: &ChannelStack, b: usize, w_light: DVec3, w_view: DVec3) -> f64 {
-    if b < s.interfaces.len() {
-        let it = &s.interfaces[b];
-        return crate::bsdf::rough_dielectric(&it.mf, s.g2, it.eta, w_light, w_view);
-    }
-    match &s.base {
-        Base::Conductor { mf, eta, k } => crate::bsdf::rough_conductor(mf, s.g2, *eta, *k, w_light, w_view),
-        Base::Diffuse { albedo, sigma } => albedo * diffuse::oren_nayar_shape(*sigma, w_light, w_view),
-    }
-}
-
-/// True when boundary `b` scatters through Dirac deltas only (a smooth interface or a smooth conductor).
-pub(crate) fn is_delta(s: &ChannelStack, b: usize) -> bool {
-    match s.interfaces.get(b) {
-        Some(it) => it.mf.is_smooth(),
-        None => matches!(&s.base, Base::Conductor { mf, .. } if mf.is_smooth()),
-    }
-}
-
 /// Solid-angle density of refracting from `w` (incident side up, w.z > 0) into `o` (o.z < 0) through `mf` with
 /// relative IOR `eta`, without the probability 1 − F of choosing refraction; and F (Walter et al. 2007 eq. 17).
 fn refraction_pdf(mf: &Microfacet, eta: f64, w: DVec3, o: DVec3) -> (f64, f64) {
@@ -226,15 +158,6 @@ fn boundary_pdf(s: &ChannelStack, b: usize, w_in: DVec3, w_out: DVec3) -> f64 {
     }
 }
 
-/// Power heuristic (Veach 1997 eq. 9.13) for a strategy of density `p` against one of density `q`.
-fn power_heuristic(p: f64, q: f64) -> f64 {
-    if p == 0.0 {
-        0.0
-    } else {
-        p * p / (p * p + q * q)
-    }
-}
-
 /// Light sampled through a rough top interface into slab 0 (strategy A of the MIS at rough tops): travel direction,
 /// flux weight (1 − F) G2/G1 and the density of the direction.
 #[derive(Clone, Copy, Debug)]
@@ -267,7 +190,7 @@ pub enum Target {
 /// the scattering slabs it crosses and ending at its first non-delta boundary (or when it leaves the stack).
 fn light_targets(s: &ChannelStack, wi: DVec3, rng: &mut Rng, out: &mut Vec<Target>) {
     out.clear();
-    if !is_delta(s, 0) {
+    if !s.is_delta(0) {
         out.push(Target::Surface { b: 0, w_light: wi, weight: 1.0 });
         return;
     }
@@ -289,7 +212,7 @@ fn light_targets(s: &ChannelStack, wi: DVec3, rng: &mut Rng, out: &mut Vec<Targe
             weight *= (-sigma_t * sl.thickness / d.z.abs()).exp();
         }
         b = if d.z > 0.0 { slab } else { slab + 1 };
-        if !is_delta(s, b) {
+        if !s.is_delta(b) {
             out.push(Target::Surface { b, w_light: -d, weight });
             return;
         }
@@ -337,20 +260,20 @@ pub fn estimate_f(s: &ChannelStack, wi: DVec3, wo: DVec3, rng: &mut Rng, targets
                         }
                         _ => 1.0,
                     };
-                    f += beta * weight * boundary_f(s, b, w_light, -d) * mis;
+                    f += beta * weight * s.boundary_f(b, w_light, -d) * mis;
                 }
             }
         }
         if let (Some(l), 1) = (light, b) {
             // Strategy A at boundary 1 (from above: reflection, from below: transmission).
-            let fv = boundary_f(s, 1, -l.d, -d);
+            let fv = s.boundary_f(1, -l.d, -d);
             if fv > 0.0 {
                 let pb = boundary_pdf(s, 1, -d, -l.d);
                 f += beta * fv * l.weight * slab0_tr(s.slabs[0].thickness, l.d) * power_heuristic(l.pdf, pb);
             }
         }
         let Some((dir, w)) = scatter_boundary(s, b, d, rng) else { return Some(f) };
-        last_pdf = if is_delta(s, b) { None } else { Some(boundary_pdf(s, b, -d, dir)) };
+        last_pdf = if s.is_delta(b) { None } else { Some(boundary_pdf(s, b, -d, dir)) };
         if b < n && dir.z * d.z > 0.0 {
             // Radiance crossing into the other medium: L_here = (η_here / η_there)² L_there.
             let eta = s.interfaces[b].eta; // η_below / η_above
@@ -399,7 +322,7 @@ pub fn estimate_f(s: &ChannelStack, wi: DVec3, wo: DVec3, rng: &mut Rng, targets
 /// Path i uses stream (seed mixed with wi and wo, i): reproducible whatever the thread count or batch, and
 /// independent between direction pairs (so averages over directions have honest standard errors).
 pub fn run_f(s: &ChannelStack, wi: DVec3, wo: DVec3, (first, samples): (u64, u64), seed: u64) -> (f64, f64, u64) {
-    let blocks = samples.div_ceil(BLOCK as u64);
+    let blocks = samples.div_ceil(PATHS_PER_TASK as u64);
     let seed = Rng::seed_for(seed, &[wi.x, wi.y, wi.z, wo.x, wo.y, wo.z]);
     let end = first + samples;
     let parts: Vec<(f64, f64, u64)> = (0..blocks)
@@ -407,7 +330,7 @@ pub fn run_f(s: &ChannelStack, wi: DVec3, wo: DVec3, (first, samples): (u64, u64
         .map(|blk| {
             let mut targets = Vec::new();
             let mut acc = (0.0, 0.0, 0u64);
-            for i in first + blk * BLOCK as u64..(first + (blk + 1) * BLOCK as u64).min(end) {
+            for i in first + blk * PATHS_PER_TASK as u64..(first + (blk + 1) * PATHS_PER_TASK as u64).min(end) {
                 let mut rng = Rng::new(seed, i);
                 match estimate_f(s, wi, wo, &mut rng, &mut targets) {
                     Some(v) => {
@@ -546,14 +469,14 @@ pub fn run(
     bins: usize,
     bin: impl Fn(DVec3) -> Option<usize> + Sync,
 ) -> Tally {
-    let blocks = samples.div_ceil(BLOCK as u64);
+    let blocks = samples.div_ceil(PATHS_PER_TASK as u64);
     let end = first + samples;
     let seed = Rng::seed_for(seed, &wi.to_array());
     let tallies: Vec<Tally> = (0..blocks)
         .into_par_iter()
         .map(|b| {
             let mut t = Tally::new(bins);
-            for i in first + b * BLOCK as u64..(first + (b + 1) * BLOCK as u64).min(end) {
+            for i in first + b * PATHS_PER_TASK as u64..(first + (b + 1) * PATHS_PER_TASK as u64).min(end) {
                 let mut rng = Rng::new(seed, i);
                 t.paths += 1;
                 match trace(s, wi, &mut rng) {
@@ -576,6 +499,9 @@ pub fn run(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::optics::distribution::Distribution;
+    use crate::stack::{Layer, Stack};
+    use crate::transport::Microsurface;
 
     fn stack(layers: Vec<Layer>) -> Stack {
         Stack::new(layers, 1.0).unwrap()
@@ -594,7 +520,7 @@ mod tests {
     }
 
     fn albedo(s: &Stack, theta: f64, n: u64) -> (f64, f64) {
-        let cs = ChannelStack::new(s, 0, Distribution::Ggx, G2Form::HeightCorrelated);
+        let cs = ChannelStack::new(s, 0, Microsurface::default());
         let wi = DVec3::new(theta.sin(), 0.0, theta.cos());
         run(&cs, wi, (0, n), 1, 1, |_| Some(0)).mean_and_stderr()[0]
     }
@@ -613,7 +539,7 @@ mod tests {
     }
 
     fn f_estimate(s: &Stack, wi: DVec3, wo: DVec3, n: u64) -> (f64, f64) {
-        let cs = ChannelStack::new(s, 0, Distribution::Ggx, G2Form::HeightCorrelated);
+        let cs = ChannelStack::new(s, 0, Microsurface::default());
         let (sum, sum2, _) = run_f(&cs, wi, wo, (0, n), 5);
         let mean = sum / n as f64;
         (mean, ((sum2 / n as f64 - mean * mean) / (n as f64 - 1.0)).sqrt())
@@ -646,7 +572,7 @@ mod tests {
     #[test]
     fn results_do_not_depend_on_thread_count() {
         let s = stack(vec![coat(1.5, 0.3, 1.0, 0.2, 0.5), Layer::Diffuse { albedo: vec![0.8], roughness: 0.0 }]);
-        let cs = ChannelStack::new(&s, 0, Distribution::Ggx, G2Form::HeightCorrelated);
+        let cs = ChannelStack::new(&s, 0, Microsurface::default());
         let wi = DVec3::new(0.5, 0.0, 0.75f64.sqrt());
         let one = rayon::ThreadPoolBuilder::new().num_threads(1).build().unwrap();
         let a = one.install(|| run(&cs, wi, (0, 10_000), 9, 1, |_| Some(0)));

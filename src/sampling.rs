@@ -72,6 +72,17 @@ pub fn orthonormal_basis(n: DVec3) -> (DVec3, DVec3) {
     (DVec3::new(1.0 + sign * n.x * n.x * a, sign * b, -sign * n.x), DVec3::new(b, sign + n.y * n.y * a, -n.y))
 }
 
+/// The power heuristic with β = 2 (Veach 1997 eq. 9.13): the weight of a sample drawn with density `pdf` against
+/// one other strategy of density `other` for the same direction.
+#[inline]
+pub fn power_heuristic(pdf: f64, other: f64) -> f64 {
+    if pdf <= 0.0 {
+        0.0
+    } else {
+        pdf * pdf / (pdf * pdf + other * other)
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

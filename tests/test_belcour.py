@@ -14,7 +14,7 @@ from hypothesis import strategies as st
 def test_smooth_coat_over_lambert_reduces_to_the_closed_form(rng):
     stack = lamina.materials.plastic((0.9, 0.5, 0.1), ior=1.5)
     wi, wo = random_hemisphere(rng, 200), random_hemisphere(rng, 200)
-    np.testing.assert_allclose(stack.eval(wi, wo, "belcour", tabulated=False), stack.eval(wi, wo), rtol=1e-8)
+    np.testing.assert_allclose(stack.eval(wi, wo, "belcour", interpolated=False), stack.eval(wi, wo), rtol=1e-8)
 
 
 @pytest.mark.parametrize("name", ["gold-clearcoat", "rough-coat-rough-copper", "varnished-diffuse", "three-layer"])
@@ -26,7 +26,7 @@ def test_tabulated_evaluation_matches_the_direct_loop(name, rng):
     wi, wo = random_hemisphere(rng, 50_000, 0.01), random_hemisphere(rng, 50_000, 0.01)
     for sym in (False, True):
         a = stack.eval(wi, wo, "belcour", symmetric=sym)
-        b = stack.eval(wi, wo, "belcour", symmetric=sym, tabulated=False)
+        b = stack.eval(wi, wo, "belcour", symmetric=sym, interpolated=False)
         big = b > 1e-3 * b.max()
         rel = np.abs(a - b)[big] / b[big]
         assert rel.max() <= 1e-3 and np.percentile(rel, 99.9) <= 5e-4, (sym, rel.max(), np.percentile(rel, 99.9))
@@ -159,7 +159,7 @@ def test_isotropic_covariances_are_scalar_and_frame_free(rng):
     wi = random_hemisphere(rng, 50)
     for tab in (True, False):
         np.testing.assert_array_equal(
-            stack(0.7).eval(wi, wo, "belcour", tabulated=tab), stack(0.0).eval(wi, wo, "belcour", tabulated=tab)
+            stack(0.7).eval(wi, wo, "belcour", interpolated=tab), stack(0.0).eval(wi, wo, "belcour", interpolated=tab)
         )
 
 
@@ -170,7 +170,7 @@ def test_single_anisotropic_interface_is_one_lobe_of_its_roughness_and_frame(rng
     np.testing.assert_allclose(np.mod(lobes["angle"][:, 0] - 0.5 - np.pi / 2, np.pi), 0, atol=1e-9)
     # f = E(wo) D(h) G2 / (4 cos θi cos θo): the lobe's energy times the microfacet shape of its roughness and frame.
     wi, wo = aniso_pairs(rng, 200)
-    f = stack.eval(wi, wo, "belcour", tabulated=False)
+    f = stack.eval(wi, wo, "belcour", interpolated=False)
     h = wi + wo
     h /= np.linalg.norm(h, axis=-1, keepdims=True)
     shape = (
@@ -197,8 +197,8 @@ def test_rotating_anisotropic_layers_and_directions_together_leaves_f_unchanged(
     wi, wo = aniso_pairs(rng, 300)
     c, s = np.cos(0.8), np.sin(0.8)
     rot = np.array([[c, -s, 0], [s, c, 0], [0, 0, 1.0]])
-    a = stack(0.8).eval(wi @ rot.T, wo @ rot.T, "belcour", tabulated=tabulated)
-    b = stack(0.0).eval(wi, wo, "belcour", tabulated=tabulated)
+    a = stack(0.8).eval(wi @ rot.T, wo @ rot.T, "belcour", interpolated=tabulated)
+    b = stack(0.0).eval(wi, wo, "belcour", interpolated=tabulated)
     np.testing.assert_allclose(a, b, rtol=1e-9 if not tabulated else 1e-2, atol=1e-12)
 
 
@@ -210,7 +210,7 @@ def test_anisotropic_table_matches_the_direct_loop(symmetric, rng):
     stack = lamina.materials.suite("anisotropic-coat-metal")
     wi, wo = aniso_pairs(rng, 50_000)
     a = stack.eval(wi, wo, "belcour", symmetric=symmetric)
-    b = stack.eval(wi, wo, "belcour", symmetric=symmetric, tabulated=False)
+    b = stack.eval(wi, wo, "belcour", symmetric=symmetric, interpolated=False)
     big = b > 1e-3 * b.max()
     rel = np.abs(a - b)[big] / b[big]
     assert rel.max() <= 1e-2 and np.percentile(rel, 99.9) <= 5e-3, (rel.max(), np.percentile(rel, 99.9))
@@ -237,7 +237,7 @@ def test_anisotropic_finite_non_negative(stack, zi, zo, phi):
     wi = np.array([[np.sqrt(1 - zi * zi) * np.cos(phi), np.sqrt(1 - zi * zi) * np.sin(phi), zi], [0.0, 0.0, 1.0]])
     wo = np.array([[-0.3, np.sqrt(max(0.0, 1 - 0.09 - zo * zo)), zo], [0.2, 0.1, 0.97]])
     for tab in (True, False):
-        f = stack.eval(wi, wo, "belcour", tabulated=tab)
+        f = stack.eval(wi, wo, "belcour", interpolated=tab)
         assert np.all(np.isfinite(f)) and np.all(f >= 0)
 
 

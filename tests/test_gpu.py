@@ -222,8 +222,8 @@ def test_device_choice_and_errors():
     with pytest.raises(ValueError, match="transport_fit .variant='improved'. runs on the CPU only"):
         materials.suite("gold-clearcoat").eval(wi, wo, "steinberg", device="gpu", variant="improved")
     assert not gpu.use_gpu("auto", "belcour", {"variant": "improved"})
-    with pytest.raises(ValueError, match="tabulated=False runs on the CPU only"):
-        materials.suite("gold-clearcoat").eval(wi, wo, "belcour", device="gpu", tabulated=False)
+    with pytest.raises(ValueError, match="interpolated=False runs on the CPU only"):
+        materials.suite("gold-clearcoat").eval(wi, wo, "belcour", device="gpu", interpolated=False)
     with pytest.raises(ValueError, match="wi contains a zero-length direction"):
         stack.eval(np.zeros(3), wo, device="gpu")
     with pytest.raises(ValueError, match="wo contains NaN or Inf"):

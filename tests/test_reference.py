@@ -326,7 +326,7 @@ def test_eval_reference_and_cache(tmp_path, monkeypatch):
     from lamina.reference import cache_key, cached_reference
 
     f1, s1 = cached_reference(stack, wi, wo, samples=3000)
-    assert len(list((tmp_path / "reference").glob("*.npz"))) == 1
+    assert len(list((tmp_path / "reference").glob("*.ref"))) == 1
     f2, s2 = cached_reference(stack, wi, wo, samples=3000)  # from disk
     np.testing.assert_array_equal(f1, f2)
     keys = {

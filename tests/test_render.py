@@ -199,8 +199,8 @@ def test_image_files_round_trip(tmp_path):
 @pytest.mark.parametrize(
     "kwargs,error,match",
     [
-        (dict(device="gpu", model="weidlich_wilkie", mask=0.5), ValueError, "per-element textures and the reference"),
-        (dict(device="gpu", model="reference"), ValueError, "per-element textures and the reference"),
+        (dict(device="gpu", model="weidlich_wilkie", mask=0.5), ValueError, "per-element inputs run on the CPU only"),
+        (dict(device="gpu", model="reference"), ValueError, "model .reference. has no GPU implementation"),
         (dict(device="tpu"), ValueError, "device must be"),
         (dict(width=0), ValueError, "width must be in"),
         (dict(spp=1.5), TypeError, "spp must be an integer"),

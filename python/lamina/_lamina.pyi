@@ -8,12 +8,15 @@ from numpy.typing import NDArray
 _Array = NDArray[np.float32] | NDArray[np.float64]
 
 __all__ = [
+    "DEVICES",
     "MODELS",
     "REFERENCE_MAX_DEPTH",
     "OAT_POISSON_DISC",
     "SOURCE_HASH",
     "__version__",
     "belcour_lobes",
+    "cache_read",
+    "cache_write",
     "check_layer",
     "check_stack",
     "eval",
@@ -25,9 +28,11 @@ __all__ = [
     "fresnel_diffuse_reflectance",
     "fresnel_schlick",
     "gpu_adapter",
+    "gpu_lose_after",
     "gpu_models",
     "gpu_resident_seconds",
     "interface_bsdf",
+    "use_gpu",
     "jacobian",
     "microfacet_d",
     "microfacet_g2",
@@ -59,6 +64,7 @@ __all__ = [
 ]
 
 MODELS: list[str]
+DEVICES: list[str]
 REFERENCE_MAX_DEPTH: int
 OAT_POISSON_DISC: list[list[float]]
 __version__: str
@@ -67,6 +73,11 @@ SOURCE_HASH: str
 def check_layer(layer: dict, name: str) -> None: ...
 def check_stack(layers: list[dict], ext_ior: float, model: str | None = None) -> int: ...
 def models() -> list[dict]: ...
+def use_gpu(
+    device: str, model: str | None = None, options: dict | None = None, inputs: bool = False, float32: bool = True
+) -> bool: ...
+def cache_read(path: str) -> bytes | None: ...
+def cache_write(path: str, payload: bytes) -> None: ...
 def eval(
     layers: list[dict],
     ext_ior: float,
@@ -94,8 +105,7 @@ def reference_sample(
     ext_ior: float,
     wo: _Array,
     u: _Array,
-    distribution: str = "ggx",
-    g2: str = "height_correlated",
+    options: dict | None = None,
 ) -> _Array: ...
 def steinberg_lut(mu: _Array, alpha: _Array, eta: _Array, lut: str) -> _Array: ...
 def fresnel_dielectric(cos_i: _Array, eta: _Array) -> _Array: ...
@@ -123,8 +133,7 @@ def reference_tally(
     seed: int,
     n_theta: int = 1,
     n_phi: int = 1,
-    distribution: str = "ggx",
-    g2: str = "height_correlated",
+    options: dict | None = None,
 ) -> tuple[list[list[float]], list[list[float]], list[int]]: ...
 def reference_f(
     layers: list[dict],
@@ -134,8 +143,7 @@ def reference_f(
     first: int,
     samples: int,
     seed: int,
-    distribution: str = "ggx",
-    g2: str = "height_correlated",
+    options: dict | None = None,
 ) -> tuple[list[list[float]], list[list[float]], list[int]]: ...
 def belcour_lobes(
     layers: list[dict], ext_ior: float, wo: list[list[float]]
@@ -202,6 +210,7 @@ def write_png(path: str, image: _Array) -> None: ...
 def write_exr(path: str, image: _Array) -> None: ...
 def gpu_adapter() -> dict[str, str]: ...
 def gpu_models() -> list[str]: ...
+def gpu_lose_after(dispatches: int) -> None: ...
 def eval_gpu(
     layers: list[dict], ext_ior: float, model: str, wi: _Array, wo: _Array, options: dict | None = None
 ) -> _Array: ...

@@ -69,8 +69,9 @@ def _check(samples, seed):
         raise ValueError(f"seed must be an integer in [0, 2**64), got {seed!r}")
 
 
-def f_estimate(layers, ext_ior, wi_rows, wo_rows, samples: int, seed: int, progress=None, **options):
-    """NEE estimate of f for each (wi, wo) row pair: mean and standard error, (pairs, channels) each."""
+def f_estimate(layers, ext_ior, wi_rows, wo_rows, samples: int, seed: int, progress=None, options=None):
+    """NEE estimate of f for each (wi, wo) row pair: mean and standard error, (pairs, channels) each. `options`: the
+    reference's (distribution, g2), checked by Rust."""
     _check(samples, seed)
     bar = _progress(len(wi_rows) * samples, progress)
     wi_list, wo_list = wi_rows.tolist(), wo_rows.tolist()
@@ -84,7 +85,7 @@ def f_estimate(layers, ext_ior, wi_rows, wo_rows, samples: int, seed: int, progr
             for first in range(0, samples, CHUNK):
                 n = min(CHUNK, samples - first)
                 a, b, t = _lamina.reference_f(
-                    layers, ext_ior, wi_list[lo:hi], wo_list[lo:hi], first, n, int(seed), **options
+                    layers, ext_ior, wi_list[lo:hi], wo_list[lo:hi], first, n, int(seed), options or {}
                 )
                 s, s2 = s + np.asarray(a), s2 + np.asarray(b)
                 truncated += int(np.sum(t))
@@ -99,8 +100,9 @@ def f_estimate(layers, ext_ior, wi_rows, wo_rows, samples: int, seed: int, progr
     return _mean_stderr(s, s2, samples)
 
 
-def tally(layers, ext_ior, wi_rows: np.ndarray, samples: int, seed: int, bins=(1, 1), progress=None, **options):
-    """Mean escaping energy per path and its standard error, shape (rows, channels, n_theta * n_phi) each."""
+def tally(layers, ext_ior, wi_rows: np.ndarray, samples: int, seed: int, bins=(1, 1), progress=None, options=None):
+    """Mean escaping energy per path and its standard error, shape (rows, channels, n_theta * n_phi) each.
+    `options`: the reference's (distribution, g2), checked by Rust."""
     _check(samples, seed)
     n_theta, n_phi = bins
     bar = _progress(len(wi_rows) * samples, progress)
@@ -111,7 +113,7 @@ def tally(layers, ext_ior, wi_rows: np.ndarray, samples: int, seed: int, bins=(1
             for first in range(0, samples, CHUNK):
                 n = min(CHUNK, samples - first)
                 a, b, t = _lamina.reference_tally(
-                    layers, ext_ior, [float(x) for x in wi], first, n, int(seed), n_theta, n_phi, **options
+                    layers, ext_ior, [float(x) for x in wi], first, n, int(seed), n_theta, n_phi, options or {}
                 )
                 a, b = np.asarray(a), np.asarray(b)
                 s, s2 = (a, b) if s is None else (s + a, s2 + b)

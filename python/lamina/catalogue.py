@@ -1,7 +1,7 @@
 """The model catalogue: every model lamina evaluates, with its options (default, allowed values, doc), its
-per-element inputs and the properties a user chooses by. The analytic models' entries come from Rust
-(src/models/); `reference` is the Monte Carlo ground truth. `Stack.eval`'s docstring and the README's model table
-are generated from here."""
+per-element inputs and the properties a user chooses by, as Rust's catalogue states them (src/models/): the analytic
+models, then `reference`, the Monte Carlo ground truth. Rust checks every option given (an option a model does not
+take is a TypeError from there). `Stack.eval`'s docstring and the README's model table are generated from here."""
 
 from __future__ import annotations
 
@@ -75,29 +75,7 @@ def _from_rust(d: dict) -> Model:
     return Model(d["name"], d["summary"], MappingProxyType(options), MappingProxyType(inputs), **d["properties"])
 
 
-_REFERENCE = Model(
-    "reference",
-    "unbiased Monte Carlo random walk through the stack (the ground truth), with standard errors",
-    MappingProxyType(
-        {
-            "distribution": Option("distribution", "choice", "ggx", "microfacet distribution", ("ggx", "beckmann")),
-            "g2": Option(
-                "g2",
-                "choice",
-                "height_correlated",
-                "masking-shadowing (Smith height-correlated, separable, or V-cavity)",
-                ("height_correlated", "separable", "v_cavity"),
-            ),
-        }
-    ),
-    MappingProxyType({}),
-    reciprocal=True,
-    energy_conserving=True,
-    anisotropic=True,
-    spectral=True,
-)
-
-_CATALOGUE = tuple(_from_rust(d) for d in _lamina.models()) + (_REFERENCE,)
+_CATALOGUE = tuple(_from_rust(d) for d in _lamina.models())
 
 #: Model names accepted by `model=`, the analytic ones first.
 MODELS: tuple = tuple(m.name for m in _CATALOGUE)

@@ -12,16 +12,22 @@ import numpy as np
 
 from . import _lamina
 
-DEVICES = ("cpu", "gpu", "auto")
+#: The values of every `device=` argument.
+DEVICES = tuple(_lamina.DEVICES)
+
+
+def _headless() -> None:
+    """Mesa's Vulkan drivers print an error at exit on headless Linux machines without XDG_RUNTIME_DIR: one is made
+    before the adapter is."""
+    if sys.platform.startswith("linux") and "XDG_RUNTIME_DIR" not in os.environ:
+        os.environ["XDG_RUNTIME_DIR"] = tempfile.mkdtemp(prefix="lamina-xdg-")
 
 
 @lru_cache(maxsize=1)
 def _adapter() -> tuple[dict | None, str]:
     if not hasattr(_lamina, "gpu_adapter"):
         return None, "this build of lamina has no GPU path (built without the 'gpu' feature)"
-    if sys.platform.startswith("linux") and "XDG_RUNTIME_DIR" not in os.environ:
-        # Mesa's Vulkan drivers print an error at exit on headless machines without it.
-        os.environ["XDG_RUNTIME_DIR"] = tempfile.mkdtemp(prefix="lamina-xdg-")
+    _headless()
     try:
         return dict(_lamina.gpu_adapter()), ""
     except RuntimeError as e:
@@ -39,27 +45,16 @@ def models() -> list[str]:
     return list(_lamina.gpu_models()) if hasattr(_lamina, "gpu_models") else []
 
 
-def cpu_only(options: dict) -> bool:
-    """Whether model options switch on transport_fit, which runs on the CPU only: itself, or through
-    variant="improved" (models/options.rs, `improved`)."""
-    return bool(options.get("transport_fit", options.get("variant") == "improved"))
-
-
-def use_gpu(device: str, model: str | None, options: dict | None = None) -> bool:
-    """Whether `device` means the GPU for `model` (None: Oat's materials, which always run there) with `options`:
-    "gpu" always (RuntimeError when there is no adapter, saying how to get one), "auto" when there is a hardware GPU
-    (not lavapipe) and the model runs on it with these options, "cpu" never."""
-    if device not in DEVICES:
-        raise ValueError(f"device must be one of {DEVICES}, got {device!r}")
-    if device == "cpu":
-        return False
-    info, why = _adapter()
-    if device == "gpu":
-        if info is None:
-            raise RuntimeError(f"device='gpu': {why}")
-        return True
-    runs = model is None or (model in models() and not cpu_only(options or {}))
-    return info is not None and info["device_type"] != "Cpu" and runs
+def use_gpu(
+    device: str, model: str | None, options: dict | None = None, inputs: bool = False, float32: bool = True
+) -> bool:
+    """Whether `device` means the GPU for `model` (None: Oat's materials, which always run there) with `options`
+    (and per-element inputs when `inputs`), for a result that is float32 anyway when `float32`. Rust decides
+    (src/device.rs): "cpu" never; "gpu" always, or a ValueError saying why the model does not run there (RuntimeError
+    without an adapter, saying how to get one); "auto" when there is a hardware GPU (not lavapipe), the model runs there
+    with these options and the result is float32 anyway."""
+    _headless()
+    return _lamina.use_gpu(device, model, options or {}, inputs, float32)
 
 
 def resident_throughput(stack, wi, wo, model: str = "microfacet", repeats: int = 5, **options) -> float:

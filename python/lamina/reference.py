@@ -1,11 +1,15 @@
 """The Monte Carlo reference as a tool: the suite's cached reference values on a fixed direction grid, and an on-disk
-cache for any reference run (the estimators themselves are in _reference.py; Stack.reference calls them)."""
+cache for any reference run (the estimators themselves are in _reference.py; Stack.reference calls them). Entries
+go through lamina's checked cache (src/cache.rs): read back only when intact, written atomically, recomputed in
+memory (with one warning) when the cache cannot be written."""
 
 from __future__ import annotations
 
 import hashlib
+import io
 import json
 import os
+import zipfile
 from pathlib import Path
 
 import numpy as np
@@ -61,17 +65,35 @@ def cache_key(stack, wi, wo, samples: int, seed: int, **options) -> str:
     return h.hexdigest()[:32]
 
 
+def load(path: Path, *names: str) -> tuple | None:
+    """The arrays `names` of the cache entry at `path`, or None when it is missing or damaged (lamina's cache checks
+    its header, length and checksum; the arrays must then be there, finite)."""
+    payload = _lamina.cache_read(str(path))
+    if payload is None:
+        return None
+    try:
+        with np.load(io.BytesIO(payload)) as z:
+            arrays = tuple(np.asarray(z[n]) for n in names)
+    except (ValueError, OSError, KeyError, zipfile.BadZipFile):
+        return None
+    return arrays if all(np.all(np.isfinite(a)) for a in arrays) else None
+
+
+def store(path: Path, **arrays) -> None:
+    """Writes the arrays as the cache entry at `path` (atomically; a cache that cannot be written warns once)."""
+    buffer = io.BytesIO()
+    np.savez(buffer, **arrays)
+    _lamina.cache_write(str(path), buffer.getvalue())
+
+
 def cached_reference(stack, wi, wo, samples: int = 100_000, seed: int = 0, progress=None, **options):
     """Stack.reference(wi, wo, ...) through the on-disk cache: (f, stderr), computed once per key."""
-    path = cache_dir() / f"{cache_key(stack, wi, wo, samples, seed, **options)}.npz"
-    if path.exists():
-        with np.load(path) as z:
-            return z["f"], z["stderr"]
+    path = cache_dir() / f"{cache_key(stack, wi, wo, samples, seed, **options)}.ref"
+    found = load(path, "f", "stderr")
+    if found is not None:
+        return found
     f, se = stack.reference(wi, wo, samples=samples, seed=seed, progress=progress, **options)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_suffix(".tmp.npz")
-    np.savez(tmp, f=f, stderr=se)
-    tmp.replace(path)
+    store(path, f=f, stderr=se)
     return f, se
 
 
@@ -89,15 +111,13 @@ def reference_albedo(stack, samples: int = 200_000, seed: int = 0, thetas=SUITE_
     (albedo (len(thetas), channels), stderr (len(thetas), channels))."""
     t = np.radians(thetas)
     wi = np.stack([np.sin(t), np.zeros_like(t), np.cos(t)], -1)
-    path = cache_dir() / f"albedo-{cache_key(stack, wi, wi, samples, seed)}.npz"
-    if path.exists():
-        with np.load(path) as z:
-            albedo, se = z["a"], z["se"]
+    path = cache_dir() / f"albedo-{cache_key(stack, wi, wi, samples, seed)}.ref"
+    found = load(path, "a", "se")
+    if found is not None:
+        albedo, se = found
     else:
         albedo, se = stack.albedo(wi, "reference", samples=samples, seed=seed, progress=False)
-        path.parent.mkdir(parents=True, exist_ok=True)
-        np.savez(path.with_suffix(".tmp.npz"), a=albedo, se=se)
-        path.with_suffix(".tmp.npz").replace(path)
+        store(path, a=albedo, se=se)
     top = stack.layers[0]
     if isinstance(top, Dielectric) and max(np.ravel(top.roughness)) == 0.0:
         albedo = albedo - optics.fresnel_dielectric(wi[:, 2], float(np.mean(top.ior)) / stack.ext_ior)[:, None]

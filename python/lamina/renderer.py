@@ -295,16 +295,15 @@ def render(
     for `seed`; every stack sees the same samples. The reference estimates f per light and the environment by random
     walks, `spp` per pixel and channel. Keyword arguments are the model's options, and its per-element inputs as
     textures over the surface's uv ((h, w) or (h, w, 3) arrays, or constants), e.g. flake_normal for car paint.
-    device: "cpu"; "gpu" renders with the models that run on the GPU (lamina.gpu.models(), wgpu, float32, one dispatch
-    for a list of stacks, split only where the adapter's storage-buffer limit requires; a mesh is rasterized through
-    the camera first; an environment is sampled as on the CPU, with other random numbers: the images agree
-    statistically; per-element textures and the reference raise ValueError); "auto" takes a hardware GPU for such
-    scenes, else the CPU.
+    device: "auto" (default), "cpu" or "gpu", by the rule of Stack.eval (docs/conventions.md): "gpu" renders with the
+    models that run on the GPU (lamina.gpu.models(), wgpu, float32, one dispatch for a list of stacks, split only
+    where the adapter's storage-buffer limit requires; a mesh is rasterized through the camera first; an environment
+    is sampled as on the CPU, with other random numbers: the images agree statistically; per-element textures and the
+    reference raise ValueError); "auto" takes a hardware GPU for such scenes (a render is float32 anyway), else the
+    CPU.
 
     material: instead of stacks, a lamina.oat.Material or a list of them (Oat 2006's gooey layers, lit by the
     directional and point lights; on the GPU for every shape)."""
-    if device not in _gpu.DEVICES:
-        raise ValueError(f"device must be one of {_gpu.DEVICES}, got {device!r}")
     if material is not None:
         if stacks is not None:
             raise TypeError("render takes stacks or material=, not both")
@@ -333,25 +332,10 @@ def render(
         else:
             raise TypeError(f"lights[{i}] must be a DirectionalLight, PointLight or EnvironmentLight, got {light!r}")
     kwargs = {**brought, **kwargs}
-    textures = {}
-    if m.name != "reference":
-        textures = {k: _texture(k, v, m.inputs[k].width) for k, v in kwargs.items() if k in m.inputs}
-    options = {k: v for k, v in kwargs.items() if k not in textures}
-    known = set(m.options) | ({"distribution", "g2"} if m.name == "reference" else set())
-    unknown = [k for k in options if k not in known]
-    if unknown:
-        raise TypeError(
-            f"model {model!r} has no option {unknown[0]!r}; its options are {sorted(known)} and its "
-            f"per-element inputs {list(m.inputs)}"
-        )
+    textures = {k: _texture(k, v, m.inputs[k].width) for k, v in kwargs.items() if k in m.inputs}
+    options = {k: v for k, v in kwargs.items() if k not in textures}  # checked by Rust against the model's table
     layers = [(s._resolve(None), s.ext_ior) for s in items]
-    on_gpu = not textures and m.name in _gpu.models()
-    if device == "gpu" and not on_gpu:
-        raise ValueError(
-            f"device='gpu' renders the models {_gpu.models()}; per-element textures and the reference run on the "
-            "CPU: use device='cpu' or 'auto'"
-        )
-    if on_gpu and _gpu.use_gpu(device, m.name, options):
+    if _gpu.use_gpu(device, m.name, options, bool(textures)):
         out = _lamina.render_gpu(layers, m.name, options, shape, camera, specs, width, height, env, spp, seed)
         return out[0] if single else out
     out = np.empty((len(items), height, width, 3), dtype=np.float32)

@@ -63,19 +63,14 @@ class Stack:
         return [layer._resolve(wavelengths) for layer in self.layers]
 
     def _split(self, model: str, kwargs: dict) -> tuple:
-        """`model`'s catalogue entry, its options and its per-element inputs from keyword arguments; the inputs as
-        `broadcast` takes them, (array, width) with width 0 for a scalar map."""
+        """`model`'s catalogue entry, its options and its per-element inputs from keyword arguments (Rust checks the
+        options against the model's table); the inputs as `broadcast` takes them, (array, width) with width 0 for a
+        scalar map."""
         m = _model(model)
         inputs = {
             k: (v, 0 if m.inputs[k].width == 1 else m.inputs[k].width) for k, v in kwargs.items() if k in m.inputs
         }
         options = {k: v for k, v in kwargs.items() if k not in m.inputs}
-        unknown = [k for k in options if k not in m.options]
-        if unknown:
-            raise TypeError(
-                f"model {model!r} has no option {unknown[0]!r}; its options are {list(m.options)} and its "
-                f"per-element inputs {list(m.inputs)}"
-            )
         return m, options, inputs
 
     def eval(
@@ -87,7 +82,7 @@ class Stack:
         wavelengths=None,
         samples: int = 10_000,
         seed: int = 0,
-        device: str = "cpu",
+        device: str = "auto",
         tolerance: float | None = None,
         **kwargs,
     ) -> np.ndarray:
@@ -107,9 +102,10 @@ class Stack:
         model="auto" evaluates with `lamina.choose(self, tolerance, wi)`: the cheapest model predicted within
         `tolerance` (relative L1 lobe error, default 0.05) for this stack and these incident directions.
 
-        device: "cpu" (default); "gpu" evaluates on the GPU (wgpu compute shaders, float32 output; lamina.gpu.models()
-        lists the models it has; RuntimeError without an adapter); "auto" takes a hardware GPU when there is one and
-        the model runs there, else the CPU.
+        device: "auto" (default) evaluates on a hardware GPU when there is one, the model runs there and the inputs are
+        float32 (so the result is float32 anyway), else on the CPU; "cpu"; "gpu" evaluates on the GPU (wgpu compute
+        shaders, float32 output; lamina.gpu.models() lists the models it has; ValueError for what it does not run,
+        RuntimeError without an adapter). docs/conventions.md states the rule.
 
         Models, their options (default, allowed values) and per-element inputs:
         """
@@ -123,9 +119,9 @@ class Stack:
         if tolerance is not None:
             raise TypeError(f"tolerance applies to model='auto' only, got model={model!r}")
         m, options, inputs = self._split(model, kwargs)
-        on_gpu = self._on_gpu(device, m.name, inputs, options)
+        on_gpu = _gpu.use_gpu(device, m.name, options, bool(inputs), _float32(wi, wo))
         if m.name == "reference":
-            return self.reference(wi, wo, wavelengths=wavelengths, samples=samples, seed=seed, **options)[0]
+            return self._reference_f(wi, wo, wavelengths, samples, seed, None, options)[0]
         wl = _wavelengths(wavelengths)
         if on_gpu:
             wi, wo = broadcast(wi=(wi, 3), wo=(wo, 3))
@@ -134,7 +130,7 @@ class Stack:
         named = dict(zip(inputs, arrays[2:]))
         return _lamina.eval(self._resolve(wl), self.ext_ior, m.name, arrays[0], arrays[1], options, named)
 
-    def sample(self, wo, u, model: str = "microfacet", *, wavelengths=None, device: str = "cpu", **kwargs):
+    def sample(self, wo, u, model: str = "microfacet", *, wavelengths=None, device: str = "auto", **kwargs):
         """Importance-samples the light direction for viewing directions wo (..., 3) from uniform numbers u (..., 3)
         in [0, 1] (broadcast): returns (wi (..., 3), weight (..., channels), pdf (...)) with weight = f(wi, wo)
         cos θi / pdf and pdf per unit solid angle — what a path tracer calls (Mitsuba's si.wi is lamina's wo).
@@ -148,18 +144,20 @@ class Stack:
         mixture from the same u)."""
         m, options, inputs = self._split(model, kwargs)
         wl = _wavelengths(wavelengths)
-        if self._on_gpu(device, m.name, inputs, options):
+        if _gpu.use_gpu(device, m.name, options, bool(inputs), _float32(wo, u)):
             wo, u = broadcast(wo=(wo, 3), u=(u, 3))
             out = _lamina.sample_gpu(self._resolve(wl), self.ext_ior, m.name, wo, u, options)
             return out[..., :3], out[..., 3:-1], out[..., -1]
         wo, u, *rest = broadcast(wo=(wo, 3), u=(u, 3), **inputs)
         if m.name == "reference":
-            out = _lamina.reference_sample(self._resolve(wl), self.ext_ior, wo, u, **options)
+            out = _lamina.reference_sample(self._resolve(wl), self.ext_ior, wo, u, options)
         else:
             out = _lamina.sample(self._resolve(wl), self.ext_ior, m.name, wo, u, options, dict(zip(inputs, rest)))
         return out[..., :3], out[..., 3:-1], out[..., -1]
 
-    def pdf(self, wi, wo, model: str = "microfacet", *, wavelengths=None, device: str = "cpu", **options) -> np.ndarray:
+    def pdf(
+        self, wi, wo, model: str = "microfacet", *, wavelengths=None, device: str = "auto", **options
+    ) -> np.ndarray:
         """The pdf (per unit solid angle) with which `sample` draws wi for the viewing direction wo; (...). device:
         as for `eval`."""
         m, options, inputs = self._split(model, options)
@@ -169,23 +167,10 @@ class Stack:
             raise TypeError(
                 f"pdf takes no per-element inputs (the sampling mixture does not depend on them), got {list(inputs)}"
             )
+        on_gpu = _gpu.use_gpu(device, m.name, options, False, _float32(wi, wo))
         wi, wo = broadcast(wi=(wi, 3), wo=(wo, 3))
-        run = _lamina.pdf_gpu if self._on_gpu(device, m.name, {}, options) else _lamina.pdf
+        run = _lamina.pdf_gpu if on_gpu else _lamina.pdf
         return run(self._resolve(_wavelengths(wavelengths)), self.ext_ior, m.name, wi, wo, options)[..., 0]
-
-    @staticmethod
-    def _on_gpu(device: str, model: str, inputs: dict, options: dict) -> bool:
-        """Whether `device` means the GPU for `model` with `options` (gpu.use_gpu), which takes no per-element
-        inputs."""
-        if not _gpu.use_gpu(device, model, options):
-            return False
-        if inputs:
-            raise ValueError(f"device={device!r}: per-element inputs run on the CPU only; use device='cpu'")
-        if model == "reference":
-            raise ValueError(
-                f"model 'reference' has no GPU implementation yet (GPU models: {_gpu.models()}); use device='cpu'"
-            )
-        return True
 
     def specular(self, wo, model: str = "microfacet", *, wavelengths=None, **options) -> np.ndarray:
         """The Dirac (mirror) reflection for viewing directions wo (..., 3): the fraction of light from the mirror
@@ -214,19 +199,14 @@ class Stack:
         """Monte Carlo ground truth for f(wi, wo): unbiased, with next-event estimation through the stack's delta
         interfaces (see src/reference.rs). wi, wo: (..., 3), broadcast. Returns (f, stderr), each (..., channels).
         Specular (Dirac) lobes are not part of f. Deterministic for a seed, whatever the thread count."""
+        return self._reference_f(wi, wo, wavelengths, samples, seed, progress, {"distribution": distribution, "g2": g2})
+
+    def _reference_f(self, wi, wo, wavelengths, samples: int, seed: int, progress, options: dict) -> tuple:
+        """`reference` with the reference's options as a dict (checked by Rust against its table)."""
         wl = _wavelengths(wavelengths)
         wi, wo = broadcast(wi=(wi, 3), wo=(wo, 3))
-        mean, err = _reference.f_estimate(
-            self._resolve(wl),
-            self.ext_ior,
-            _unit_rows("wi", wi),
-            _unit_rows("wo", wo),
-            samples,
-            seed,
-            progress=progress,
-            distribution=distribution,
-            g2=g2,
-        )
+        rows = (_unit_rows("wi", wi), _unit_rows("wo", wo))
+        mean, err = _reference.f_estimate(self._resolve(wl), self.ext_ior, *rows, samples, seed, progress, options)
         shape = wi.shape[:-1] + (mean.shape[-1],)
         return mean.reshape(shape), err.reshape(shape)
 
@@ -344,7 +324,7 @@ class Stack:
         rows = _unit_rows("wi", wi)
         if m.name == "reference":
             mean, err = _reference.tally(
-                self._resolve(wl), self.ext_ior, rows, samples, seed, progress=progress, **model_options
+                self._resolve(wl), self.ext_ior, rows, samples, seed, progress=progress, options=model_options
             )
             shape = wi.shape[:-1] + (mean.shape[1],)
             return mean[..., 0].reshape(shape), err[..., 0].reshape(shape)
@@ -401,8 +381,7 @@ class Stack:
             seed,
             bins=(n_theta, n_phi),
             progress=progress,
-            distribution=distribution,
-            g2=g2,
+            options={"distribution": distribution, "g2": g2},
         )
         te = np.linspace(0, np.pi / 2, n_theta + 1)
         pe = np.linspace(0, 2 * np.pi, n_phi + 1)
@@ -412,6 +391,11 @@ class Stack:
 
 
 Stack.eval.__doc__ += "\n".join("        " + line for line in options_doc().splitlines())
+
+
+def _float32(*arrays) -> bool:
+    """Whether every array is float32: the result is float32 then, on either device (device="auto"'s rule)."""
+    return all(np.asarray(a).dtype == np.float32 for a in arrays)
 
 
 def _unit_rows(name: str, w: np.ndarray) -> np.ndarray:

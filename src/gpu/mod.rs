@@ -8,20 +8,19 @@
 //! `belcour` (tabulated, every other option). Per-element inputs (car-paint flakes, the patina mask) run on the CPU
 //! only. A model is prepared once per stack and options and kept, with its arrays on the device (`cached_kernel`); the tables
 //! that every stack shares are uploaded once (`table`). Inputs of any length are split into dispatches of at most
-//! CHUNK pairs. A batch of stacks renders in one dispatch (`batched`). The renderer (`render`, shaders/scene.wgsl and render.wgsl) renders stacks,
-//! and Oat 2006's gooey layers (`oat`, shaders/oat.wgsl), on the sphere, the plane and meshes (shaders/mesh.wgsl,
+//! CHUNK pairs. A batch of stacks renders in one dispatch (`batched`). The renderer (`render`, shaders/scene.wgsl and render.wgsl) renders stacks
+//! (and src/oat/gpu.rs Oat 2006's gooey layers) on the sphere, the plane and meshes (shaders/mesh.wgsl,
 //! rasterized by raster.wgsl) under directional and point lights; stacks also under an environment (env.wgsl, with
 //! the models' sampling mixtures of sample.wgsl). Device errors come back as values.
 
-pub mod oat;
-
 use crate::error::{value_error, Error, Result};
-use crate::models::single_pass::{SpLayer, INTERREFLECTION_NODES};
-use crate::models::{albedo_scaling, belcour, microfacet, steinberg, weidlich_wilkie, Options};
+use crate::models::common::single_pass::{SpLayer, INTERREFLECTION_NODES};
+use crate::models::{albedo_scaling, belcour, microfacet, steinberg, weidlich_wilkie, Args, Value};
 use crate::optics::distribution::{Distribution, G2Form, Microfacet};
 use crate::optics::fresnel::FresnelForm;
 use crate::stack::Stack;
 use crate::tables::elek::{beckmann_table, FRESNEL_SAMPLES};
+use std::sync::atomic::{AtomicBool, AtomicI64, Ordering};
 use std::sync::{Arc, Mutex, OnceLock};
 use wgpu::util::DeviceExt;
 
@@ -120,16 +119,24 @@ impl Query {
 const RENDER_KERNELS: [&str; 4] = ["render", "render_mesh", "render_env", "render_mesh_env"];
 
 /// The adapter, its device, per model (in the order of MODELS) its per-element pipelines (Query) and its render
-/// pipelines (RENDER_KERNELS), each compiled on first use (drivers take seconds per kernel), Oat's kernels (in the order of oat::KERNELS) and the mesh's rasterization in uv
-/// space and through the camera.
+/// pipelines (RENDER_KERNELS), each compiled on first use (drivers take seconds per kernel), the mesh's
+/// rasterization in uv space and through the camera, and what lives on this device: the prepared kernels with
+/// their arrays, the shared tables, Oat's pipelines (src/oat/gpu.rs). A device that is lost takes all of it along;
+/// `gpu()` then creates the next one.
 pub struct Gpu {
     pub info: wgpu::AdapterInfo,
-    device: wgpu::Device,
+    pub(crate) device: wgpu::Device,
     queue: wgpu::Queue,
     pipelines: Vec<[OnceLock<wgpu::ComputePipeline>; 3]>,
     renderers: Vec<[OnceLock<wgpu::ComputePipeline>; 4]>,
-    oat: [wgpu::ComputePipeline; 6],
-    raster: [wgpu::RenderPipeline; 2],
+    pub(crate) raster: [wgpu::RenderPipeline; 2],
+    kernels: Mutex<Vec<(String, Arc<Uploaded>)>>,
+    tables: Mutex<Vec<((usize, usize), wgpu::Buffer)>>,
+    pub(crate) oat: OnceLock<Vec<wgpu::ComputePipeline>>,
+    /// Set by the device-lost callback.
+    lost: Arc<AtomicBool>,
+    /// Fault injection for lamina's tests: dispatches left before the device is destroyed (negative: never).
+    lose_after: AtomicI64,
 }
 
 /// The visibility targets' format: (triangle, b1, b2, covered) per texel.
@@ -180,10 +187,26 @@ fn raster_pipeline(
 const NO_ADAPTER: &str = "no GPU adapter found through wgpu (Vulkan). Install a Vulkan driver for your GPU; on a \
     machine without one, Mesa's lavapipe (Debian/Ubuntu: apt install mesa-vulkan-drivers) is a CPU adapter";
 
-/// The process's GPU, created on first use (the best adapter: a discrete or integrated GPU before a CPU one).
-pub fn gpu() -> Result<&'static Gpu> {
-    static GPU: OnceLock<std::result::Result<Gpu, String>> = OnceLock::new();
-    GPU.get_or_init(|| pollster::block_on(create())).as_ref().map_err(|e| Error::Value(e.clone()))
+/// The process's GPU, created on first use (the best adapter: a discrete or integrated GPU before a CPU one) and again
+/// after it is lost. Without an adapter, the error says how to get one (and stays: adapters do not appear).
+pub fn gpu() -> Result<Arc<Gpu>> {
+    static GPU: Mutex<Option<std::result::Result<Arc<Gpu>, String>>> = Mutex::new(None);
+    let mut slot = GPU.lock().unwrap_or_else(|e| e.into_inner());
+    match &*slot {
+        Some(Ok(g)) if !g.lost.load(Ordering::Relaxed) => return Ok(g.clone()),
+        Some(Err(why)) => return Err(Error::Device(why.clone())),
+        _ => {}
+    }
+    let created = pollster::block_on(create()).map(Arc::new);
+    *slot = Some(created.clone());
+    created.map_err(Error::Device)
+}
+
+/// Fault injection for lamina's tests (tests/faults.py): the current device destroys itself after `dispatches` more
+/// dispatches, as a lost device would stop.
+pub fn lose_after(dispatches: i64) -> Result<()> {
+    gpu()?.lose_after.store(dispatches, Ordering::Relaxed);
+    Ok(())
 }
 
 async fn create() -> std::result::Result<Gpu, String> {
@@ -211,8 +234,6 @@ async fn create() -> std::result::Result<Gpu, String> {
         })
         .await
         .map_err(|e| format!("the GPU adapter refused a device: {e}"))?;
-    let oat_module = compute_module(&device, "oat", oat::compose());
-    let oat = oat::KERNELS.map(|entry| compute_pipeline(&device, &oat_module, entry));
     let pipelines = MODELS.iter().map(|_| std::array::from_fn(|_| OnceLock::new())).collect();
     let renderers = MODELS.iter().map(|_| std::array::from_fn(|_| OnceLock::new())).collect();
     let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
@@ -220,17 +241,36 @@ async fn create() -> std::result::Result<Gpu, String> {
         source: wgpu::ShaderSource::Wgsl(compose_raster().into()),
     });
     let raster = [("uv_vertex", false), ("camera_vertex", true)].map(|(e, d)| raster_pipeline(&device, &module, e, d));
-    Ok(Gpu { info: adapter.get_info(), device, queue, pipelines, renderers, oat, raster })
+    let lost = Arc::new(AtomicBool::new(false));
+    let flag = lost.clone();
+    device.set_device_lost_callback(move |_, _| flag.store(true, Ordering::Relaxed));
+    Ok(Gpu {
+        info: adapter.get_info(),
+        device,
+        queue,
+        pipelines,
+        renderers,
+        raster,
+        kernels: Mutex::new(Vec::new()),
+        tables: Mutex::new(Vec::new()),
+        oat: OnceLock::new(),
+        lost,
+        lose_after: AtomicI64::new(-1),
+    })
 }
 
-fn compute_module(device: &wgpu::Device, name: &str, source: String) -> wgpu::ShaderModule {
+pub(crate) fn compute_module(device: &wgpu::Device, name: &str, source: String) -> wgpu::ShaderModule {
     device.create_shader_module(wgpu::ShaderModuleDescriptor {
         label: Some(name),
         source: wgpu::ShaderSource::Wgsl(source.into()),
     })
 }
 
-fn compute_pipeline(device: &wgpu::Device, module: &wgpu::ShaderModule, entry: &str) -> wgpu::ComputePipeline {
+pub(crate) fn compute_pipeline(
+    device: &wgpu::Device,
+    module: &wgpu::ShaderModule,
+    entry: &str,
+) -> wgpu::ComputePipeline {
     layout_pipeline(device, module, entry, None)
 }
 
@@ -472,7 +512,7 @@ pub fn microfacet_kernel(p: &microfacet::Prepared) -> Kernel {
 /// The Belcour kernel: 16 words in the layout of `Params` in belcour.wgsl, the table and the diffuse base.
 pub fn belcour_kernel(p: &belcour::Prepared) -> Result<Kernel> {
     let Some(d) = p.gpu_data() else {
-        return value_error("model 'belcour' with tabulated=False runs on the CPU only; use device='cpu'");
+        return value_error("model 'belcour' with interpolated=False runs on the CPU only; use device='cpu'");
     };
     let [lobes, nodes, azimuths, width, channels] = d.shape.map(|x| x as u32);
     let (diffuse, eta) = d.diffuse.unwrap_or((vec![], 1.0));
@@ -569,20 +609,46 @@ pub fn albedo_scaling_kernel(p: &albedo_scaling::Prepared) -> Kernel {
     }
 }
 
-/// A prepared model's kernel, or why it does not run on the GPU.
-pub fn kernel(model: &str, stack: &Stack, opts: &Options) -> Result<Kernel> {
-    if opts.transport_fit {
-        return value_error(format!(
-            "model {model:?} with transport_fit (variant='improved') runs on the CPU only; use device='cpu', or \
+/// Why `model` with `args` (and per-element inputs, when `inputs`) does not run on the GPU, or None when it does: the
+/// one rule behind every `device=` choice (device.rs) and every GPU kernel.
+pub fn refusal(model: &str, args: &Args, inputs: bool) -> Option<String> {
+    if !supports(model) {
+        return Some(unsupported(model).to_string());
+    }
+    if args.get("transport_fit") == Some(&Value::Flag(true)) {
+        return Some(format!(
+            "model '{model}' with transport_fit (variant='improved') runs on the CPU only; use device='cpu', or \
              transport_fit=False on the GPU"
         ));
     }
+    if model == "belcour" && args.get("interpolated") == Some(&Value::Flag(false)) {
+        return Some("model 'belcour' with interpolated=False runs on the CPU only; use device='cpu'".into());
+    }
+    if inputs {
+        return Some(
+            "per-element inputs run on the CPU only (textures, car-paint flakes, the patina mask); use device='cpu'"
+                .into(),
+        );
+    }
+    None
+}
+
+/// A prepared model's kernel, or why it does not run on the GPU.
+pub fn kernel(model: &str, stack: &Stack, args: &Args) -> Result<Kernel> {
+    if let Some(why) = refusal(model, args, false) {
+        return value_error(why);
+    }
     match model {
-        "microfacet" => Ok(microfacet_kernel(&microfacet::prepare(stack, opts)?)),
-        "belcour" => belcour_kernel(&belcour::prepare(stack, opts)?),
-        "steinberg" => Ok(steinberg_kernel(&steinberg::prepare(stack, opts)?)),
-        "weidlich_wilkie" => Ok(weidlich_wilkie_kernel(&weidlich_wilkie::prepare(stack, opts)?)),
-        "albedo_scaling" => Ok(albedo_scaling_kernel(&albedo_scaling::prepare(stack, opts)?)),
+        "microfacet" => Ok(microfacet_kernel(&microfacet::prepare(stack, &microfacet::Options::parse(args)?)?)),
+        "belcour" => belcour_kernel(&belcour::prepare(stack, &belcour::Options::parse(args)?)?),
+        "steinberg" => Ok(steinberg_kernel(&steinberg::prepare(stack, &steinberg::Options::parse(args)?)?)),
+        "weidlich_wilkie" => {
+            let opts = weidlich_wilkie::Options::parse(args, stack.channels)?;
+            Ok(weidlich_wilkie_kernel(&weidlich_wilkie::prepare(stack, &opts)?))
+        }
+        "albedo_scaling" => {
+            Ok(albedo_scaling_kernel(&albedo_scaling::prepare(stack, &albedo_scaling::Options::parse(args)?)?))
+        }
         _ => Err(unsupported(model)),
     }
 }
@@ -590,7 +656,8 @@ pub fn kernel(model: &str, stack: &Stack, opts: &Options) -> Result<Kernel> {
 /// The error for a model without a GPU implementation, naming those that have one.
 fn unsupported(model: &str) -> Error {
     let names: Vec<&str> = MODELS.iter().map(|m| m.0).collect();
-    Error::Value(format!("model {model:?} has no GPU implementation yet (GPU models: {names:?}); use device='cpu'"))
+    let names = crate::error::py_list(&names);
+    Error::Value(format!("model '{model}' has no GPU implementation yet (GPU models: {names}); use device='cpu'"))
 }
 
 /// A prepared kernel, and its arrays and tables on the device as `batched` binds them for it alone: uploaded on the
@@ -628,12 +695,11 @@ fn batched(gpu: &Gpu, kernels: &[&Kernel]) -> (Vec<u32>, Vec<wgpu::Buffer>) {
     (words, buffers)
 }
 
-/// A table that every stack shares (Steinberg's, the FGD, Elek's Beckmann table), uploaded once per process.
+/// A table that every stack shares (Steinberg's, the FGD, Elek's Beckmann table), uploaded once per device.
 fn table(gpu: &Gpu, data: &'static [f32]) -> wgpu::Buffer {
-    static TABLES: Mutex<Vec<((usize, usize), wgpu::Buffer)>> = Mutex::new(Vec::new());
     // Static data never moves: its address and length name it.
     let key = (data.as_ptr() as usize, data.len());
-    let mut tables = TABLES.lock().unwrap_or_else(|e| e.into_inner());
+    let mut tables = gpu.tables.lock().unwrap_or_else(|e| e.into_inner());
     if let Some((_, b)) = tables.iter().find(|(k, _)| *k == key) {
         return b.clone();
     }
@@ -646,21 +712,20 @@ const STORAGE: wgpu::BufferUsages = wgpu::BufferUsages::STORAGE;
 
 const CACHED: usize = 16;
 
-/// `model` prepared for `stack` and `opts` for the GPU: kept for the next calls with equal arguments (as the CPU
+/// `model` prepared for `stack` and `args` for the GPU: kept for the next calls with equal arguments (as the CPU
 /// keeps its prepared models), so that its tables are built once and, for per-element queries, uploaded once
 /// (`Uploaded::arrays`).
-fn cached_kernel(model: &str, stack: &Stack, opts: &Options) -> Result<Arc<Uploaded>> {
-    static CACHE: Mutex<Vec<(String, Arc<Uploaded>)>> = Mutex::new(Vec::new());
+fn cached_kernel(gpu: &Gpu, model: &str, stack: &Stack, args: &Args) -> Result<Arc<Uploaded>> {
     // Debug prints every f64 in its shortest round-trip form: equal keys mean equal arguments (models::prepare).
-    let key = format!("{model}|{stack:?}|{opts:?}");
-    let mut cache = CACHE.lock().unwrap_or_else(|e| e.into_inner());
+    let key = format!("{model}|{stack:?}|{args:?}");
+    let mut cache = gpu.kernels.lock().unwrap_or_else(|e| e.into_inner());
     if let Some(k) = cache.iter().position(|(k, _)| *k == key) {
         let entry = cache.remove(k);
         let found = entry.1.clone();
         cache.insert(0, entry);
         return Ok(found);
     }
-    let up = Arc::new(Uploaded { kernel: kernel(model, stack, opts)?, arrays: OnceLock::new() });
+    let up = Arc::new(Uploaded { kernel: kernel(model, stack, args)?, arrays: OnceLock::new() });
     cache.insert(0, (key, up.clone()));
     cache.truncate(CACHED);
     Ok(up)
@@ -694,6 +759,7 @@ fn batch(gpu: &Gpu, up: &Uploaded, pipeline: &wgpu::ComputePipeline, query: Quer
 
 /// Submits one dispatch of a batch, then (with `read`) the copy of its output into `read`.
 fn dispatch_batch(gpu: &Gpu, pipeline: &wgpu::ComputePipeline, b: &Batch, read: Option<&wgpu::Buffer>) {
+    gpu.count_dispatch();
     let mut encoder = gpu.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: None });
     {
         let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor { label: None, timestamp_writes: None });
@@ -707,56 +773,90 @@ fn dispatch_batch(gpu: &Gpu, pipeline: &wgpu::ComputePipeline, b: &Batch, read: 
     gpu.queue.submit([encoder.finish()]);
 }
 
-/// Runs `work` with the device's validation and out-of-memory errors caught as a ValueError-like Error instead of
-/// wgpu's default handler, which panics (nothing may panic across the FFI boundary).
-fn scoped<T>(gpu: &Gpu, work: impl FnOnce() -> Result<T>) -> Result<T> {
+impl Gpu {
+    /// Counts a dispatch against the fault injection of `lose_after`, destroying the device when its count runs out.
+    pub(crate) fn count_dispatch(&self) {
+        if self.lose_after.fetch_sub(1, Ordering::Relaxed) == 0 {
+            self.device.destroy();
+        }
+    }
+
+    /// The error of work on this device that failed: it names the device and the work (with its size), and says
+    /// what comes next.
+    fn failure(&self, what: &str, why: &str) -> Error {
+        let lost = self.lost.load(Ordering::Relaxed);
+        let next = if lost { "the device was lost; the next call creates it again" } else { "the device is kept" };
+        Error::Device(format!("the GPU ({}) failed while {what}: {why}; {next}", self.info.name))
+    }
+}
+
+/// Runs `work` (`what`: the work and its size, for the message) with the device's validation and out-of-memory errors
+/// caught, instead of wgpu's default handler, which panics (nothing may panic across the FFI boundary); an error, or
+/// the device lost meanwhile, becomes a Device error (RuntimeError) naming the device and the work.
+pub(crate) fn scoped<T>(gpu: &Gpu, what: &str, work: impl FnOnce() -> Result<T>) -> Result<T> {
     let memory = gpu.device.push_error_scope(wgpu::ErrorFilter::OutOfMemory);
     let validation = gpu.device.push_error_scope(wgpu::ErrorFilter::Validation);
     let out = work();
     let errors = [pollster::block_on(validation.pop()), pollster::block_on(memory.pop())];
-    match errors.into_iter().flatten().next() {
-        Some(e) => Err(Error::Value(format!("GPU: {e}"))),
-        None => out,
+    if let Some(e) = errors.into_iter().flatten().next() {
+        return Err(gpu.failure(what, &e.to_string()));
+    }
+    match out {
+        Err(Error::Device(why)) => Err(gpu.failure(what, &why)),
+        Ok(_) if gpu.lost.load(Ordering::Relaxed) => Err(gpu.failure(what, "the device was lost")),
+        out => out,
     }
 }
 
-fn wait(gpu: &Gpu) -> Result<()> {
-    gpu.device.poll(wgpu::PollType::wait_indefinitely()).map(|_| ()).map_err(|e| Error::Value(format!("GPU: {e}")))
+/// Waits for the submitted work; an error of the device's (lost) as a Device error.
+pub(crate) fn wait(gpu: &Gpu) -> Result<()> {
+    gpu.device.poll(wgpu::PollType::wait_indefinitely()).map(|_| ()).map_err(|e| Error::Device(e.to_string()))
+}
+
+/// A size in bytes as text: "3.0 GiB", "45.8 MiB", "12 KiB".
+pub(crate) fn bytes(n: usize) -> String {
+    match n {
+        n if n >= 1 << 30 => format!("{:.1} GiB", n as f64 / (1u64 << 30) as f64),
+        n if n >= 1 << 20 => format!("{:.1} MiB", n as f64 / (1u64 << 20) as f64),
+        n => format!("{} KiB", n.div_ceil(1 << 10)),
+    }
 }
 
 /// The model on the device, its pipeline, and the pairs per dispatch (CHUNK, or fewer where the adapter's
 /// storage-buffer limit requires).
-fn prepared(
+fn prepared<'g>(
+    gpu: &'g Gpu,
     model: &str,
     stack: &Stack,
-    opts: &Options,
+    args: &Args,
     query: Query,
     pairs: &[f32],
-) -> Result<(&'static Gpu, Arc<Uploaded>, &'static wgpu::ComputePipeline, usize)> {
+) -> Result<(Arc<Uploaded>, &'g wgpu::ComputePipeline, usize)> {
     if !pairs.len().is_multiple_of(6) {
         return value_error("pairs must be float32 (n, 6) rows of two vectors");
     }
-    let gpu = gpu()?;
-    let up = cached_kernel(model, stack, opts)?;
+    let up = cached_kernel(gpu, model, stack, args)?;
     let k = MODELS.iter().position(|m| m.0 == up.kernel.model).expect("a listed model");
     let limit = gpu.device.limits().max_storage_buffer_binding_size as usize;
     let chunk = CHUNK.min((limit / (4 * query.width(up.kernel.channels).max(6))).max(64));
     let pipeline = gpu.query_pipeline(k, query, up.arrays(gpu).len());
-    Ok((gpu, up, pipeline, chunk))
+    Ok((up, pipeline, chunk))
 }
 
 /// `query` of `model` for n elements given as float32 rows of two unit vectors, (wi, wo) or for Sample (wo, u):
 /// n·query.width(channels) float32 values.
-pub fn run(query: Query, model: &str, stack: &Stack, opts: &Options, pairs: &[f32]) -> Result<Vec<f32>> {
+pub fn run(query: Query, model: &str, stack: &Stack, args: &Args, pairs: &[f32]) -> Result<Vec<f32>> {
     let gpu = gpu()?;
-    scoped(gpu, || run_scoped(query, model, stack, opts, pairs))
+    let n = pairs.len() / 6;
+    let what = format!("running {model} on {n} elements ({})", bytes(4 * n * (6 + query.width(stack.channels))));
+    scoped(&gpu, &what, || run_scoped(&gpu, query, model, stack, args, pairs))
 }
 
-fn run_scoped(query: Query, model: &str, stack: &Stack, opts: &Options, pairs: &[f32]) -> Result<Vec<f32>> {
+fn run_scoped(gpu: &Gpu, query: Query, model: &str, stack: &Stack, args: &Args, pairs: &[f32]) -> Result<Vec<f32>> {
     if !matches!(query, Query::Eval) {
         fits_the_mixture(stack)?;
     }
-    let (gpu, up, pipeline, chunk) = prepared(model, stack, opts, query, pairs)?;
+    let (up, pipeline, chunk) = prepared(gpu, model, stack, args, query, pairs)?;
     let c = query.width(up.kernel.channels);
     let mut out = vec![0f32; pairs.len() / 6 * c];
     for (rows, dst) in pairs.chunks(6 * chunk).zip(out.chunks_mut(chunk * c)) {
@@ -770,9 +870,12 @@ fn run_scoped(query: Query, model: &str, stack: &Stack, opts: &Options, pairs: &
 
 /// Seconds per evaluation of all the pairs with inputs and outputs resident on the device (uploaded once, nothing
 /// read back): the mean over `repeats` rounds after a warm-up round. For benchmarks.
-pub fn resident_seconds(model: &str, stack: &Stack, opts: &Options, pairs: &[f32], repeats: usize) -> Result<f64> {
-    scoped(gpu()?, || {
-        let (gpu, up, pipeline, chunk) = prepared(model, stack, opts, Query::Eval, pairs)?;
+pub fn resident_seconds(model: &str, stack: &Stack, args: &Args, pairs: &[f32], repeats: usize) -> Result<f64> {
+    let gpu = gpu()?;
+    let what = format!("timing {model} on {} resident pairs", pairs.len() / 6);
+    scoped(&gpu, &what, || {
+        let gpu = &*gpu;
+        let (up, pipeline, chunk) = prepared(gpu, model, stack, args, Query::Eval, pairs)?;
         let batches: Vec<Batch> =
             pairs.chunks(6 * chunk).map(|rows| batch(gpu, &up, pipeline, Query::Eval, rows)).collect();
         batches.iter().for_each(|b| dispatch_batch(gpu, pipeline, b, None));
@@ -802,7 +905,7 @@ pub struct Scene {
 
 /// The scene's uniform parameters (RenderParams in scene.wgsl) for a dispatch rendering `stacks` images, and the
 /// light rows, on the device.
-fn scene_buffers(gpu: &Gpu, scene: &Scene, stacks: usize) -> (wgpu::Buffer, wgpu::Buffer) {
+pub(crate) fn scene_buffers(gpu: &Gpu, scene: &Scene, stacks: usize) -> (wgpu::Buffer, wgpu::Buffer) {
     let mut words = [0u32; 24];
     words[..6].copy_from_slice(&[
         scene.width as u32,
@@ -824,11 +927,11 @@ fn scene_buffers(gpu: &Gpu, scene: &Scene, stacks: usize) -> (wgpu::Buffer, wgpu
     )
 }
 
-fn init(gpu: &Gpu, label: &str, contents: &[u8], usage: wgpu::BufferUsages) -> wgpu::Buffer {
+pub(crate) fn init(gpu: &Gpu, label: &str, contents: &[u8], usage: wgpu::BufferUsages) -> wgpu::Buffer {
     gpu.device.create_buffer_init(&wgpu::util::BufferInitDescriptor { label: Some(label), contents, usage })
 }
 
-fn buffer(gpu: &Gpu, label: &str, size: u64, usage: wgpu::BufferUsages) -> wgpu::Buffer {
+pub(crate) fn buffer(gpu: &Gpu, label: &str, size: u64, usage: wgpu::BufferUsages) -> wgpu::Buffer {
     gpu.device.create_buffer(&wgpu::BufferDescriptor { label: Some(label), size, usage, mapped_at_creation: false })
 }
 
@@ -842,13 +945,13 @@ fn workgroups(threads: usize) -> (u32, u32) {
 
 /// A resource of a bind group.
 #[derive(Clone, Copy)]
-enum Res<'a> {
+pub(crate) enum Res<'a> {
     Buffer(&'a wgpu::Buffer),
     View(&'a wgpu::TextureView),
 }
 
 /// A bind group of `layout_of`'s group `g` with the resources at their bindings (none: an unused group).
-fn group(gpu: &Gpu, layout_of: &wgpu::ComputePipeline, g: u32, resources: &[(u32, Res)]) -> wgpu::BindGroup {
+pub(crate) fn group(gpu: &Gpu, layout_of: &wgpu::ComputePipeline, g: u32, resources: &[(u32, Res)]) -> wgpu::BindGroup {
     group_of(gpu, &layout_of.get_bind_group_layout(g), resources)
 }
 
@@ -868,7 +971,7 @@ fn group_of(gpu: &Gpu, layout: &wgpu::BindGroupLayout, resources: &[(u32, Res)])
 }
 
 /// Records one dispatch of `pipeline` over `threads` with its bind groups 0, 1 and 2.
-fn dispatch(
+pub(crate) fn dispatch(
     encoder: &mut wgpu::CommandEncoder,
     pipeline: &wgpu::ComputePipeline,
     groups: &[&wgpu::BindGroup],
@@ -885,7 +988,7 @@ fn dispatch(
 
 /// A visibility target of `size` texels (and a depth buffer with `depth`), cleared, and the mesh rasterized into it
 /// by `pipeline` with the mesh's bind group (and the scene's, for the camera).
-fn rasterize(
+pub(crate) fn rasterize(
     gpu: &Gpu,
     encoder: &mut wgpu::CommandEncoder,
     pipeline: &wgpu::RenderPipeline,
@@ -942,34 +1045,58 @@ fn rasterize(
 }
 
 /// Submits `encoder` and reads the float32 buffer `read` back.
-fn finish(gpu: &Gpu, encoder: wgpu::CommandEncoder, read: &wgpu::Buffer) -> Result<Vec<f32>> {
+pub(crate) fn finish(gpu: &Gpu, encoder: wgpu::CommandEncoder, read: &wgpu::Buffer) -> Result<Vec<f32>> {
     gpu.queue.submit([encoder.finish()]);
     read_back(gpu, read)
 }
 
-/// The float32 values of the mappable buffer `read`, once the submitted work has written them.
+/// The float32 values of the mappable buffer `read`, once the submitted work has written them; a Device error when
+/// they cannot be read (a lost device).
 fn read_back(gpu: &Gpu, read: &wgpu::Buffer) -> Result<Vec<f32>> {
     let slice = read.slice(..);
-    slice.map_async(wgpu::MapMode::Read, |_| {});
+    let (tx, rx) = std::sync::mpsc::channel();
+    slice.map_async(wgpu::MapMode::Read, move |r| {
+        let _ = tx.send(r);
+    });
     wait(gpu)?;
-    let view = slice.get_mapped_range().map_err(|e| Error::Value(format!("GPU: {e}")))?;
+    match rx.try_recv() {
+        Ok(Ok(())) => {}
+        Ok(Err(e)) => return Err(Error::Device(e.to_string())),
+        Err(_) => return Err(Error::Device("the results were never mapped".into())),
+    }
+    let view = slice.get_mapped_range().map_err(|e| Error::Device(e.to_string()))?;
     Ok(bytemuck::cast_slice(&view).to_vec())
 }
 
 /// Renders each stack under the scene's lights (and environment): (stacks, height, width, 3) float32 radiance. One
 /// dispatch renders every stack (`batched`), or as many as the adapter's storage-buffer limit holds.
-pub fn render(model: &str, stacks: &[Stack], opts: &Options, scene: &Scene) -> Result<Vec<f32>> {
+pub fn render(model: &str, stacks: &[Stack], args: &Args, scene: &Scene) -> Result<Vec<f32>> {
     let gpu = gpu()?;
-    scoped(gpu, || render_scoped(gpu, model, stacks, opts, scene))
+    let image = 12 * scene.width * scene.height;
+    let what = format!(
+        "rendering {} image(s) of {} x {} with {model} ({} each)",
+        stacks.len(),
+        scene.width,
+        scene.height,
+        bytes(image)
+    );
+    let limit = gpu.device.limits().max_storage_buffer_binding_size as usize;
+    if image > limit {
+        return Err(gpu.failure(
+            &what,
+            &format!("an image needs {}, over the adapter's storage-buffer limit of {}", bytes(image), bytes(limit)),
+        ));
+    }
+    scoped(&gpu, &what, || render_scoped(&gpu, model, stacks, args, scene))
 }
 
-fn render_scoped(gpu: &'static Gpu, model: &str, stacks: &[Stack], opts: &Options, scene: &Scene) -> Result<Vec<f32>> {
+fn render_scoped(gpu: &Gpu, model: &str, stacks: &[Stack], args: &Args, scene: &Scene) -> Result<Vec<f32>> {
     let Some(k) = MODELS.iter().position(|m| m.0 == model) else { return Err(unsupported(model)) };
     let pipeline = gpu.render_pipeline(k, scene.mesh.is_some() as usize + 2 * scene.env.is_some() as usize);
     if scene.env.is_some() {
         stacks.iter().try_for_each(fits_the_mixture)?;
     }
-    let ups = stacks.iter().map(|s| cached_kernel(model, s, opts)).collect::<Result<Vec<_>>>()?;
+    let ups = stacks.iter().map(|s| cached_kernel(gpu, model, s, args)).collect::<Result<Vec<_>>>()?;
     if ups.iter().any(|u| u.kernel.channels != 3) {
         return value_error("render takes RGB stacks (3 channels)");
     }
@@ -1046,29 +1173,34 @@ fn render_batch(
     }
     dispatch(&mut encoder, pipeline, &groups.iter().collect::<Vec<_>>(), threads);
     encoder.copy_buffer_to_buffer(&image, 0, &read, 0, size);
+    gpu.count_dispatch();
     finish(gpu, encoder, &read)
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
 
     #[test]
     fn every_shader_is_valid_wgsl() {
-        // naga parses and validates each composed module as wgpu would, without a GPU.
         let sources = MODELS
             .iter()
             .flat_map(|(name, _)| [(*name, compose(name).unwrap()), (*name, compose_render(name).unwrap())])
-            .chain([("oat", oat::compose()), ("raster", compose_raster())]);
+            .chain([("raster", compose_raster())]);
         for (name, src) in sources {
-            let module = wgpu::naga::front::wgsl::parse_str(&src)
-                .unwrap_or_else(|e| panic!("{name}: {}", e.emit_to_string(&src)));
-            wgpu::naga::valid::Validator::new(
-                wgpu::naga::valid::ValidationFlags::all(),
-                wgpu::naga::valid::Capabilities::all(),
-            )
-            .validate(&module)
-            .unwrap_or_else(|e| panic!("{name}: {e:?}"));
+            validate(name, &src);
         }
+    }
+
+    /// Parses and validates a composed module with naga as wgpu would, without a GPU; panics with naga's message.
+    pub(crate) fn validate(name: &str, src: &str) {
+        let module =
+            wgpu::naga::front::wgsl::parse_str(src).unwrap_or_else(|e| panic!("{name}: {}", e.emit_to_string(src)));
+        wgpu::naga::valid::Validator::new(
+            wgpu::naga::valid::ValidationFlags::all(),
+            wgpu::naga::valid::Capabilities::all(),
+        )
+        .validate(&module)
+        .unwrap_or_else(|e| panic!("{name}: {e:?}"));
     }
 }

@@ -1,33 +1,33 @@
 //! The BRDF models behind `Stack.eval(model=...)`, as one catalogue. Each model is one module that opens with its
-//! parameter table and ends in an `INFO`: name, summary, options, per-element inputs, properties and `prepare`. A
-//! prepared model evaluates f for blocks of direction pairs, proposes lobes for importance sampling (`sample.rs`
-//! turns them into `sample` and `pdf`) and reports its Dirac (mirror) reflection. Adding a model: one module and one
-//! line in `CATALOGUE`.
+//! parameter table and ends in an `INFO`: name, summary, options, per-element inputs, properties and `prepare`,
+//! which reads the model's own options struct from `Args` (common/options.rs). A prepared model evaluates f for
+//! blocks of direction pairs, proposes lobes for importance sampling (common/mixture.rs turns them into `sample` and
+//! `pdf`) and reports its Dirac (mirror) reflection. Adding a model: one module and one line in `CATALOGUE`.
+//!
+//! `common/` holds what the models share (options, sampling mixtures, the single-pass walk, block evaluation);
+//! `corrections/` lamina's corrections of the published models.
 //!
 //! The last few prepared models are kept, so that repeated calls on one material (a renderer's loop, a notebook's
 //! sweep) build their tables once.
 
 pub mod albedo_scaling;
 pub mod belcour;
+pub mod common;
+pub mod corrections;
 pub mod microfacet;
-pub mod options;
-pub mod sample;
-pub mod single_pass;
 pub mod steinberg;
 pub mod tabulated;
-pub mod transport_fit;
 pub mod weidlich_wilkie;
 
-pub use options::{OptionKind, OptionSpec, Options, Value};
+pub use common::block::{eval_fan, eval_one, BLOCK, MAX_INPUTS};
+pub use common::options::{Args, OptionKind, OptionSpec, Value};
 
-use crate::error::{value_error, Result};
+use crate::error::{py, py_list, value_error, Result};
 use crate::optics::distribution::Microfacet;
 use crate::stack::Stack;
+use common::options::{DISTRIBUTION, G2};
 use glam::DVec3;
 use std::sync::{Arc, Mutex};
-
-/// Rows per evaluation block (`Model::eval_block`).
-pub const BLOCK: usize = 64;
 
 /// The models, in the order `lamina.MODELS` lists them.
 pub const CATALOGUE: &[&ModelInfo] = &[
@@ -70,7 +70,24 @@ pub struct ModelInfo {
     pub options: &'static [OptionSpec],
     pub inputs: &'static [InputSpec],
     pub properties: Properties,
-    pub prepare: fn(&Stack, &Options) -> Result<Box<dyn Model>>,
+    /// The model for a stack, its options read from `Args` into the model's own options struct.
+    pub prepare: fn(&Stack, &Args) -> Result<Box<dyn Model>>,
+}
+
+/// The Monte Carlo reference's entry: its options (the microsurface of every rough boundary) and properties. It is
+/// an estimator (reference.rs), which `prepare` does not take.
+pub const REFERENCE: ModelInfo = ModelInfo {
+    name: "reference",
+    summary: "unbiased Monte Carlo random walk through the stack (the ground truth), with standard errors",
+    options: &[DISTRIBUTION, G2],
+    inputs: &[],
+    properties: Properties { reciprocal: true, energy_conserving: true, anisotropic: true, spectral: true },
+    prepare: |_, _| value_error("model 'reference' is a Monte Carlo estimator (Stack.reference), not a prepared model"),
+};
+
+/// Every entry a user can name: the analytic models, then the reference.
+pub fn entries() -> impl Iterator<Item = &'static ModelInfo> {
+    CATALOGUE.iter().copied().chain([&REFERENCE])
 }
 
 /// The per-element input columns of one block, in the order of the model's `inputs`: None where not given; a
@@ -104,142 +121,112 @@ pub trait Model: Send + Sync {
     }
 }
 
-/// The catalogue entry of `name`, or a ValueError listing every model.
+/// The catalogue entry of `name` (the reference's included), or a ValueError listing every model.
 pub fn info(name: &str) -> Result<&'static ModelInfo> {
-    CATALOGUE.iter().copied().find(|m| m.name == name).ok_or_else(|| {
-        let names: Vec<&str> = CATALOGUE.iter().map(|m| m.name).chain(["reference"]).collect();
-        crate::error::Error::Value(format!("model must be one of {names:?}, got {name:?}"))
+    entries().find(|m| m.name == name).ok_or_else(|| {
+        let names: Vec<&str> = entries().map(|m| m.name).collect();
+        crate::error::Error::Value(format!("model must be one of {}, got {}", py_list(&names), py(name)))
     })
+}
+
+/// `name`'s entry and its options from the values given, each checked against its table; an option it does not take
+/// is a TypeError listing its options and per-element inputs (the one such check: Python asks it).
+pub fn parse(name: &str, given: &[(String, Value)]) -> Result<(&'static ModelInfo, Args)> {
+    let info = info(name)?;
+    if let Some((key, _)) = given.iter().find(|(k, _)| !info.options.iter().any(|s| s.name == k)) {
+        let options: Vec<&str> = info.options.iter().map(|s| s.name).collect();
+        let inputs: Vec<&str> = info.inputs.iter().map(|s| s.name).collect();
+        return crate::error::type_error(format!(
+            "model {} has no option {}; its options are {} and its per-element inputs {}",
+            py(name),
+            py(key),
+            py_list(&options),
+            py_list(&inputs)
+        ));
+    }
+    Ok((info, Args::parse(name, info.options, given)?))
 }
 
 /// How many prepared models `prepare` keeps (most recently used first).
 const CACHED: usize = 16;
 
+/// The prepared models, most recently used first.
+static CACHE: Mutex<Vec<(String, Arc<dyn Model>)>> = Mutex::new(Vec::new());
+
+/// The cache's key of a model, stack and options: Debug prints every f64 in its shortest round-trip form, so equal
+/// keys mean equal arguments.
+fn key(model: &str, stack: &Stack, args: &Args) -> String {
+    format!("{model}|{stack:?}|{args:?}")
+}
+
+/// `model` as one of the last CACHED calls of `prepare` with equal arguments prepared it, if any.
+pub fn cached(model: &str, stack: &Stack, args: &Args) -> Option<Arc<dyn Model>> {
+    let key = key(model, stack, args);
+    let mut cache = CACHE.lock().unwrap_or_else(|e| e.into_inner());
+    let k = cache.iter().position(|(k, _)| *k == key)?;
+    let entry = cache.remove(k);
+    let prepared = entry.1.clone();
+    cache.insert(0, entry);
+    Some(prepared)
+}
+
 /// Prepares `model` for `stack`, or explains why the model cannot represent the stack; a model prepared by one of
 /// the last CACHED calls with equal arguments is reused.
-pub fn prepare(model: &str, stack: &Stack, opts: &Options) -> Result<Arc<dyn Model>> {
-    type Cache = Mutex<Vec<(String, Arc<dyn Model>)>>;
-    static CACHE: Cache = Mutex::new(Vec::new());
-    let info = info(model)?;
-    // Debug prints every f64 in its shortest round-trip form: equal keys mean equal arguments.
-    let key = format!("{model}|{stack:?}|{opts:?}");
-    let hit = {
-        let mut cache = CACHE.lock().unwrap_or_else(|e| e.into_inner());
-        let k = cache.iter().position(|(k, _)| *k == key);
-        k.map(|k| {
-            let entry = cache.remove(k);
-            let prepared = entry.1.clone();
-            cache.insert(0, entry);
-            prepared
-        })
-    };
-    if let Some(prepared) = hit {
+pub fn prepare(model: &str, stack: &Stack, args: &Args) -> Result<Arc<dyn Model>> {
+    if let Some(prepared) = cached(model, stack, args) {
         return Ok(prepared);
     }
-    if opts.tint.len() != 1 && opts.tint.len() != stack.channels {
-        return value_error(format!(
-            "tint has {} values but the stack has {} channels",
-            opts.tint.len(),
-            stack.channels
-        ));
-    }
-    let mut prepared = (info.prepare)(stack, opts)?;
-    if opts.transport_fit {
-        prepared = transport_fit::fit(prepared, stack)?;
-    }
-    let prepared: Arc<dyn Model> = Arc::from(prepared);
+    let prepared: Arc<dyn Model> = Arc::from((info(model)?.prepare)(stack, args)?);
     let mut cache = CACHE.lock().unwrap_or_else(|e| e.into_inner());
-    cache.insert(0, (key, prepared.clone()));
+    cache.insert(0, (key(model, stack, args), prepared.clone()));
     cache.truncate(CACHED);
     Ok(prepared)
 }
 
-/// The most per-element inputs a model declares.
-pub const MAX_INPUTS: usize = 4;
+#[cfg(test)]
+mod tests {
+    use super::*;
 
-/// f(wi, wo) of one pair (a block of one row) with the pair's per-element input values (at most MAX_INPUTS).
-pub fn eval_one(model: &dyn Model, wi: DVec3, wo: DVec3, inputs: &[Option<[f64; 3]>], out: &mut [f64]) {
-    let cols: [[[f64; 1]; 3]; MAX_INPUTS] =
-        std::array::from_fn(|j| inputs.get(j).copied().flatten().unwrap_or_default().map(|x| [x]));
-    let block: [Option<[&[f64]; 3]>; MAX_INPUTS] =
-        std::array::from_fn(|j| inputs.get(j).copied().flatten().map(|_| cols[j].each_ref().map(|c| &c[..])));
-    out.fill(0.0);
-    model.eval_block([&[wi.x], &[wi.y], &[wi.z]], [&[wo.x], &[wo.y], &[wo.z]], &block[..inputs.len()], out);
-}
+    /// Each entry's source, whose `//!` parameter table documents its options.
+    const SOURCES: &[(&str, &str)] = &[
+        ("microfacet", include_str!("microfacet.rs")),
+        ("belcour", include_str!("belcour/mod.rs")),
+        ("steinberg", include_str!("steinberg.rs")),
+        ("weidlich_wilkie", include_str!("weidlich_wilkie.rs")),
+        ("albedo_scaling", include_str!("albedo_scaling.rs")),
+        ("tabulated", include_str!("tabulated.rs")),
+        ("reference", include_str!("../reference.rs")),
+    ];
 
-/// f(wi, wo) for many wi and one wo with one set of per-element input values: out[k] is f at wis[k] (3 channels),
-/// evaluated in blocks of BLOCK rows (a renderer's samples at one pixel).
-pub fn eval_fan(model: &dyn Model, wo: DVec3, inputs: &[Option<[f64; 3]>], wis: &[DVec3], out: &mut [[f64; 3]]) {
-    if wis.len() <= 4 {
-        // A few directions (a pixel under point lights): one row at a time, without zeroing a block's scratch.
-        for (wi, o) in wis.iter().zip(out.iter_mut()) {
-            eval_one(model, *wi, wo, inputs, o);
-        }
-        return;
+    /// An option as a parameter table writes it: name, type and default.
+    fn documented(spec: &OptionSpec) -> [String; 3] {
+        let quoted = |s: &str| format!("`{s}`");
+        let (kind, default) = match (spec.kind, spec.default()) {
+            (OptionKind::Choice { .. } | OptionKind::Variant { .. }, Value::Text(t)) => ("string", quoted(&t)),
+            (OptionKind::Flag { .. }, Value::Flag(b)) => ("bool", quoted(&b.to_string())),
+            (OptionKind::Number { default, .. }, _) => ("float", default.to_string()),
+            (OptionKind::Channels { default, .. }, _) => ("floats", default.to_string()),
+            (kind, value) => unreachable!("{kind:?} with default {value:?}"),
+        };
+        [quoted(spec.name), kind.into(), default]
     }
-    let mut cols = [[[0.0; BLOCK]; 3]; 2];
-    let inputs_cols: [[[f64; BLOCK]; 3]; MAX_INPUTS] =
-        std::array::from_fn(|j| inputs.get(j).copied().flatten().unwrap_or_default().map(|x| [x; BLOCK]));
-    (0..3).for_each(|c| cols[1][c] = [wo[c]; BLOCK]);
-    let mut f = [0.0; 3 * BLOCK];
-    for (chunk, dst) in wis.chunks(BLOCK).zip(out.chunks_mut(BLOCK)) {
-        let n = chunk.len();
-        for (r, w) in chunk.iter().enumerate() {
-            (0..3).for_each(|c| cols[0][c][r] = w[c]);
-        }
-        let block: [Option<[&[f64]; 3]>; MAX_INPUTS] = std::array::from_fn(|j| {
-            inputs.get(j).copied().flatten().map(|_| inputs_cols[j].each_ref().map(|c| &c[..n]))
-        });
-        f[..3 * n].fill(0.0);
-        model.eval_block(
-            cols[0].each_ref().map(|c| &c[..n]),
-            cols[1].each_ref().map(|c| &c[..n]),
-            &block[..inputs.len()],
-            &mut f[..3 * n],
-        );
-        for (d, v) in dst.iter_mut().zip(f.chunks_exact(3)) {
-            *d = [v[0], v[1], v[2]];
+
+    #[test]
+    fn every_parameter_table_lists_the_options_of_the_catalogue_entry() {
+        for info in entries() {
+            let (_, src) = SOURCES.iter().find(|(n, _)| *n == info.name).expect("a source for every entry");
+            // The table's rows that name a parameter: (name, type, default) from their first three cells.
+            let rows: Vec<[String; 3]> = src
+                .lines()
+                .filter_map(|l| l.strip_prefix("//! | `"))
+                .map(|l| {
+                    let cells: Vec<String> =
+                        format!("| `{l}").split('|').skip(1).take(3).map(|c| c.trim().into()).collect();
+                    [cells[0].clone(), cells[1].clone(), cells[2].clone()]
+                })
+                .collect();
+            let options: Vec<[String; 3]> = info.options.iter().map(documented).collect();
+            assert_eq!(rows, options, "{}'s //! table against its catalogue entry", info.name);
         }
     }
-}
-
-/// Row r of a block's direction columns.
-#[inline(always)]
-pub fn row(w: [&[f64]; 3], r: usize) -> DVec3 {
-    DVec3::new(w[0][r], w[1][r], w[2][r])
-}
-
-/// A block evaluated row by row with `eval(r, wi, wo, out_row)`: the block path of what has no vectorized form.
-#[inline(always)]
-pub fn eval_rows(wi: [&[f64]; 3], wo: [&[f64]; 3], out: &mut [f64], eval: impl Fn(usize, DVec3, DVec3, &mut [f64])) {
-    let k = out.len() / wi[0].len();
-    for (r, o) in out.chunks_exact_mut(k).enumerate() {
-        eval(r, row(wi, r), row(wo, r), o);
-    }
-}
-
-/// The body of a `Model::eval_block` that runs `$p.eval_columns(wi, wo, out)` (an `#[inline(always)]` method of
-/// type `$ty`) compiled for AVX2 + FMA when the CPU has them (4 f64 lanes in the loops that vectorize), else as is.
-/// Rust never contracts a * b + c into an FMA by itself, so both paths give identical bits.
-macro_rules! simd_columns {
-    ($ty:ty, $p:expr, $wi:expr, $wo:expr, $out:expr) => {{
-        #[cfg(target_arch = "x86_64")]
-        if $crate::models::has_avx2() {
-            #[target_feature(enable = "avx2,fma")]
-            unsafe fn avx2(p: &$ty, wi: [&[f64]; 3], wo: [&[f64]; 3], out: &mut [f64]) {
-                p.eval_columns(wi, wo, out)
-            }
-            // SAFETY: the CPU supports every feature the function is compiled for.
-            return unsafe { avx2($p, $wi, $wo, $out) };
-        }
-        $p.eval_columns($wi, $wo, $out)
-    }};
-}
-pub(crate) use simd_columns;
-
-/// Whether the CPU has AVX2 and FMA (checked once, then cached by std).
-#[cfg(target_arch = "x86_64")]
-#[inline]
-pub fn has_avx2() -> bool {
-    std::arch::is_x86_feature_detected!("avx2") && std::arch::is_x86_feature_detected!("fma")
 }

@@ -14,15 +14,17 @@
 //! boundaries' lobes (each at least as rough as the layers above it), weighted by their energies, and the cosine.
 //! A smooth top's mirror reflection is a Dirac lobe (`specular`).
 
-use super::options::{DISTRIBUTION, G2};
-use super::sample::defensive_mixture;
-use super::{InputSpec, Model, ModelInfo, OptionSpec, Options, Properties, Proposal, BLOCK};
+use super::common::block::{simd_columns, BLOCK};
+use super::common::mixture::defensive_mixture;
+use super::common::options::{microsurface, DISTRIBUTION, G2};
+use super::{microfacet, InputSpec, Model, ModelInfo, OptionSpec, Properties, Proposal};
 use crate::error::{value_error, Result};
 use crate::optics::distribution::{G2Form, Microfacet};
-use crate::optics::fresnel;
+use crate::optics::fresnel::{self, FresnelForm};
 use crate::stack::{Layer, Stack};
 use crate::tables::adding_doubling::{pair, tabulate, Cells, NODES, N_PHI, N_THETA, ORDERS, PAIRS};
 use crate::tables::{cached, node};
+use crate::transport::Microsurface;
 use glam::DVec3;
 use std::hash::{DefaultHasher, Hash, Hasher};
 
@@ -32,11 +34,7 @@ pub const INFO: ModelInfo = ModelInfo {
     options: &[DISTRIBUTION, G2] as &[OptionSpec],
     inputs: &[] as &[InputSpec],
     properties: Properties { reciprocal: true, energy_conserving: true, anisotropic: false, spectral: true },
-    // A single opaque boundary is its own top: `microfacet` evaluates it exactly, and there is nothing to tabulate.
-    prepare: |stack, opts| match stack.layers.len() {
-        1 => Ok(Box::new(super::microfacet::prepare(stack, opts)?)),
-        _ => Ok(Box::new(prepare(stack, opts)?)),
-    },
+    prepare: |stack, args| prepare(stack, microsurface(args)?),
 };
 
 pub struct Prepared {
@@ -52,10 +50,10 @@ pub struct Prepared {
     albedo_below_top: Vec<f64>,
 }
 
-/// The file name of the cached table of `stack` with `opts` (a hash of everything the table depends on).
-fn cache_name(stack: &Stack, opts: &Options) -> String {
+/// The file name of the cached table of `stack` on `surface` (a hash of everything the table depends on).
+fn cache_name(stack: &Stack, surface: Microsurface) -> String {
     let mut h = DefaultHasher::new();
-    format!("{stack:?}|{:?}|{:?}|{N_THETA}x{ORDERS}x{N_PHI}", opts.distribution, opts.g2).hash(&mut h);
+    format!("{stack:?}|{:?}|{:?}|{N_THETA}x{ORDERS}x{N_PHI}", surface.distribution, surface.g2).hash(&mut h);
     format!("tabulated-{:016x}.f32", h.finish())
 }
 
@@ -67,7 +65,19 @@ pub(crate) fn anisotropic_layer(stack: &Stack) -> Option<(usize, (f64, f64))> {
     })
 }
 
-pub fn prepare(stack: &Stack, opts: &Options) -> Result<Prepared> {
+/// The model of `stack` with rough boundaries of `surface`: a single opaque boundary is its own top, which
+/// `microfacet` evaluates exactly, with nothing to tabulate; a layered stack is tabulated.
+pub fn prepare(stack: &Stack, surface: Microsurface) -> Result<Box<dyn Model>> {
+    if stack.layers.len() == 1 {
+        let opts =
+            microfacet::Options { distribution: surface.distribution, g2: surface.g2, fresnel: FresnelForm::Exact };
+        return Ok(Box::new(microfacet::prepare(stack, &opts)?));
+    }
+    Ok(Box::new(tabulate_stack(stack, surface)?))
+}
+
+/// The tabulated model of a layered stack.
+fn tabulate_stack(stack: &Stack, surface: Microsurface) -> Result<Prepared> {
     if let Some((i, alpha)) = anisotropic_layer(stack) {
         return value_error(format!(
             "model 'tabulated' tabulates isotropic stacks: layer {i} ({}) has roughness ({}, {}); use 'belcour' or \
@@ -78,13 +88,13 @@ pub fn prepare(stack: &Stack, opts: &Options) -> Result<Prepared> {
         ));
     }
     let len = PAIRS * N_PHI * stack.channels;
-    let table = cached(&cache_name(stack, opts), len, || tabulate(stack, opts.distribution, opts.g2));
-    let top = stack.layers[0].microfacet(opts.distribution).filter(|m| !m.is_smooth());
+    let table = cached(&cache_name(stack, surface), len, || tabulate(stack, surface))?;
+    let top = stack.layers[0].microfacet(surface.distribution).filter(|m| !m.is_smooth());
     // Sampling proposes each inner rough boundary's lobe as seen through the layers above it, at least as rough as
     // the roughest of them (Elek's m₂ ≥ m₁): a glossy metal under a rough coat reflects a lobe as wide as the coat's.
     let mut rougher = 0.0f64;
     let mut lobes = Vec::new();
-    for (i, mf) in stack.layers.iter().enumerate().filter_map(|(i, l)| Some((i, l.microfacet(opts.distribution)?))) {
+    for (i, mf) in stack.layers.iter().enumerate().filter_map(|(i, l)| Some((i, l.microfacet(surface.distribution)?))) {
         if i > 0 && !mf.is_smooth() {
             lobes.push(mf.with_alpha(mf.alpha_x.max(rougher), mf.alpha_y.max(rougher)));
         }
@@ -108,7 +118,7 @@ pub fn prepare(stack: &Stack, opts: &Options) -> Result<Prepared> {
         })
         .collect();
     let eta = stack.interfaces().swap_remove(0).eta;
-    Ok(Prepared { table, top, g2: opts.g2, eta, lobes, albedo_below_top })
+    Ok(Prepared { table, top, g2: surface.g2, eta, lobes, albedo_below_top })
 }
 
 /// The table coordinate x = √(1 − cos θ) of zenith cosine z.
@@ -131,7 +141,7 @@ impl Prepared {
         if let Some(mf) = &self.top {
             let (mut geo, mut cos_h, mut f) = ([0.0; BLOCK], [0.0; BLOCK], [0.0; BLOCK]);
             let (geo, cos_h, f) = (&mut geo[..n], &mut cos_h[..n], &mut f[..n]);
-            super::microfacet::geometry(mf, self.g2, wi, wo, geo, cos_h);
+            microfacet::geometry(mf, self.g2, wi, wo, geo, cos_h);
             for (c, &eta) in self.eta.iter().enumerate() {
                 if c == 0 || eta != self.eta[c - 1] {
                     for r in 0..n {
@@ -196,7 +206,7 @@ struct Corners {
 
 impl Model for Prepared {
     fn eval_block(&self, wi: [&[f64]; 3], wo: [&[f64]; 3], _inputs: &super::Inputs, out: &mut [f64]) {
-        super::simd_columns!(Prepared, self, wi, wo, out)
+        simd_columns!(Prepared, self, wi, wo, out)
     }
 
     fn proposals(&self, wo: DVec3) -> Vec<(f64, Proposal)> {
@@ -241,7 +251,7 @@ mod tests {
     }
 
     fn model(layers: Vec<Layer>) -> Prepared {
-        prepare(&Stack::new(layers, 1.0).unwrap(), &Options::default()).unwrap()
+        tabulate_stack(&Stack::new(layers, 1.0).unwrap(), Microsurface::default()).unwrap()
     }
 
     fn dir(theta_deg: f64, phi_deg: f64) -> DVec3 {

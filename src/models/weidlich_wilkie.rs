@@ -24,19 +24,21 @@
 //! | `transition`      | float  | 0.1        | patina: smoothstep half-width                                        |
 //! | `tint`            | floats | 1          | patina: tarnish of the base under the patina, per channel            |
 //! | `transport_fit`   | bool   | `false`    | lamina's correction: f ← s f + a fitted to the stack's adding-doubling |
-//! | `variant`         | string | `published`| `improved`: with `transport_fit` (models/transport_fit.rs)           |
+//! | `variant`         | string | `published`| `improved`: with `transport_fit` (corrections/transport_fit.rs)      |
 //!
 //! Per-element inputs: `flake_normal` (..., 3) and `distance` (...) tilt the base normal to
 //! normalize(flake + max(distance, 1) ẑ) (car paint; a base tilted below the horizon reflects nothing); `mask`
 //! (...) in [0, 1] covers the surface with the stack's top layer, the patina (`Patina`). Sampling: the shared
 //! single-pass mixture (models/single_pass.rs).
 
-use super::options::{
-    variant, OptionKind, CLAMP_ROUGHNESS, CONDUCTOR_INTERREFLECTION, DISTRIBUTIONS, ETA2, FRESNEL, G2_FORMS,
+use super::common::block::{eval_rows, simd_columns, BLOCK};
+use super::common::options::{
+    distribution, flag, g2, number, variant, OptionKind, CLAMP_ROUGHNESS, CONDUCTOR_INTERREFLECTION, ETA2, FRESNEL,
     INTERREFLECTION, TRANSPORT_FIT,
 };
-use super::single_pass::{self, refracted_up, Interface, Passage, SpLayer, Transport, Walk};
-use super::{eval_rows, InputSpec, Inputs, Model, ModelInfo, OptionSpec, Options, Properties, Proposal, BLOCK};
+use super::common::single_pass::{refracted_up, Passage, SpInterface, SpLayer, Transport, Walk, WalkOptions};
+use super::corrections::{interreflection, transport_fit};
+use super::{Args, InputSpec, Inputs, Model, ModelInfo, OptionSpec, Properties, Proposal};
 use crate::bsdf;
 use crate::error::{value_error, Result};
 use crate::optics::distribution::Distribution;
@@ -49,43 +51,32 @@ pub const INFO: ModelInfo = ModelInfo {
     name: "weidlich_wilkie",
     summary: "Weidlich–Wilkie 2007 as adapted by Elek 2010: one recursive pass, car-paint flakes, copper patina",
     options: &[
-        OptionSpec {
-            name: "distribution",
-            kind: OptionKind::Choice { choices: DISTRIBUTIONS, default: "beckmann" },
-            doc: "microfacet distribution",
-        },
-        OptionSpec {
-            name: "g2",
-            kind: OptionKind::Choice { choices: G2_FORMS, default: "v_cavity" },
-            doc: "masking-shadowing (Torrance–Sparrow's V-cavity by default)",
-        },
+        distribution("beckmann"),
+        g2("v_cavity", "masking-shadowing (Torrance–Sparrow's V-cavity by default)"),
         FRESNEL,
-        OptionSpec {
-            name: "precomputed",
-            kind: OptionKind::Flag { default: false },
-            doc: "Elek's precomputed Fresnel (128 samples) and Beckmann (512 x 512) tables",
-        },
+        flag("precomputed", false, "Elek's precomputed Fresnel (128 samples) and Beckmann (512 x 512) tables"),
         CLAMP_ROUGHNESS,
         ETA2,
         INTERREFLECTION,
         CONDUCTOR_INTERREFLECTION,
-        OptionSpec {
-            name: "extent",
-            kind: OptionKind::Number { lo: 0.0, hi: 1.0, default: 0.5 },
-            doc: "patina (with mask): coverage 1 − smoothstep(extent − transition, extent + transition, mask)",
-        },
-        OptionSpec {
-            name: "transition",
-            kind: OptionKind::Number { lo: 0.0, hi: 1.0, default: 0.1 },
-            doc: "patina (with mask): half-width of the smoothstep",
-        },
+        number(
+            "extent",
+            0.0,
+            1.0,
+            0.5,
+            "patina (with mask): coverage 1 − smoothstep(extent − transition, extent + transition, mask)",
+        ),
+        number("transition", 0.0, 1.0, 0.1, "patina (with mask): half-width of the smoothstep"),
         OptionSpec {
             name: "tint",
             kind: OptionKind::Channels { lo: 0.0, hi: 1.0, default: 1.0 },
             doc: "patina (with mask): tarnish of the base under the patina, per channel, lerp(1, tint, coverage)",
         },
         TRANSPORT_FIT,
-        variant("published: Weidlich–Wilkie / Elek (lamina's defaults); improved: with transport_fit"),
+        variant(
+            &["transport_fit"],
+            "published: Weidlich–Wilkie / Elek (lamina's defaults); improved: with transport_fit",
+        ),
     ] as &[OptionSpec],
     inputs: &[
         InputSpec {
@@ -98,8 +89,53 @@ pub const INFO: ModelInfo = ModelInfo {
         InputSpec { name: "mask", width: 1, range: (0.0, 1.0), doc: "patina map: where the top layer covers the base" },
     ],
     properties: Properties { reciprocal: false, energy_conserving: false, anisotropic: true, spectral: true },
-    prepare: |stack, opts| Ok(Box::new(prepare(stack, opts)?)),
+    prepare: |stack, args| {
+        let opts = Options::parse(args, stack.channels)?;
+        transport_fit::apply(opts.transport_fit, Box::new(prepare(stack, &opts)?), stack)
+    },
 };
+
+/// Weidlich–Wilkie's options (the table above).
+#[derive(Clone, Debug, PartialEq)]
+pub struct Options {
+    pub walk: WalkOptions,
+    pub distribution: Distribution,
+    /// Elek's precomputed Fresnel and Beckmann tables.
+    pub precomputed: bool,
+    /// Elek's patina (with the per-element input `mask`): smoothstep centre and half-width, and the tarnish of the
+    /// base under the patina per channel (or one for all).
+    pub extent: f64,
+    pub transition: f64,
+    pub tint: Vec<f64>,
+    pub transport_fit: bool,
+}
+
+impl Options {
+    /// The options for a stack of `channels` channels (`tint` has one value or one per channel).
+    pub fn parse(args: &Args, channels: usize) -> Result<Options> {
+        let tint = args.channels("tint")?;
+        if tint.len() != 1 && tint.len() != channels {
+            return value_error(format!("tint has {} values but the stack has {channels} channels", tint.len()));
+        }
+        Ok(Options {
+            walk: WalkOptions::parse(args)?,
+            distribution: args.choice("distribution")?,
+            precomputed: args.flag("precomputed")?,
+            extent: args.number("extent")?,
+            transition: args.number("transition")?,
+            tint,
+            transport_fit: args.flag("transport_fit")?,
+        })
+    }
+
+    /// The walk of `stack` with these options' microfacets and corrections (`clamp`: Elek's roughness clamp).
+    fn walk_of(&self, stack: &Stack, clamp: bool) -> Walk {
+        let opts = WalkOptions { clamp_roughness: clamp, ..self.walk };
+        let mut walk = Walk::new(stack, self.distribution, &opts);
+        interreflection::correct(&mut walk.layers, &opts);
+        walk
+    }
+}
 
 pub struct Prepared {
     pub walk: Walk,
@@ -110,12 +146,12 @@ pub struct Prepared {
 }
 
 pub fn prepare(stack: &Stack, opts: &Options) -> Result<Prepared> {
-    let mut walk = Walk::new(stack, opts.distribution, opts);
-    let precomputed = opts.elek_precomputed;
+    let mut walk = opts.walk_of(stack, opts.walk.clamp_roughness);
+    let precomputed = opts.precomputed;
     if precomputed {
         for layer in &mut walk.layers {
             if let SpLayer::Dielectric { iface, .. } | SpLayer::Conductor { iface, .. } = layer {
-                iface.precompute(opts.fresnel);
+                iface.precompute(opts.walk.fresnel);
             }
         }
         beckmann_table();
@@ -131,7 +167,7 @@ impl Transport for Prepared {
     /// Torrance–Sparrow lobe D G / (4 cos θi cos θo); the precomputed variant takes D from Elek's table (isotropic
     /// Beckmann interfaces; others keep the analytic D).
     #[inline(always)]
-    fn lobe(&self, iface: &Interface, wi: DVec3, wo: DVec3) -> Option<(f64, f64)> {
+    fn lobe(&self, iface: &SpInterface, wi: DVec3, wo: DVec3) -> Option<(f64, f64)> {
         let (geo, cos_h) = bsdf::reflection_geometry(&iface.mf, self.walk.g2, wi, wo)?;
         let mf = &iface.mf;
         if !self.precomputed || geo == 0.0 || mf.dist != Distribution::Beckmann || mf.alpha_x != mf.alpha_y {
@@ -143,7 +179,7 @@ impl Transport for Prepared {
 
     /// Snell's law at the macro-surface; T₁₂ = 1 − F(cos θL) into the layer, t = (1 − G) + T₂₁ G out of it.
     #[inline(always)]
-    fn passage(&self, iface: &Interface, wi: DVec3, wo: DVec3, c: usize) -> Option<Passage> {
+    fn passage(&self, iface: &SpInterface, wi: DVec3, wo: DVec3, c: usize) -> Option<Passage> {
         let eta = iface.eta[c];
         let (sin_i, sin_o) = (sin_theta(wi) / eta, sin_theta(wo) / eta);
         if sin_i >= 1.0 || sin_o >= 1.0 {
@@ -174,7 +210,7 @@ impl Model for Prepared {
         let input = |j: usize| inputs.get(j).copied().flatten();
         let (flake, distance, mask) = (input(0), input(1), input(2));
         if flake.is_none() && mask.is_none() {
-            return super::simd_columns!(Prepared, self, wi, wo, out);
+            return simd_columns!(Prepared, self, wi, wo, out);
         }
         let mut normals = [DVec3::Z; BLOCK];
         let normals = &mut normals[..wi[0].len()];
@@ -248,9 +284,9 @@ impl Patina {
             _ => (0.0, 0.0),
         };
         Ok(Patina {
-            bare: Walk::new(&bare, opts.distribution, opts),
-            patina: Walk::new(stack, opts.distribution, &Options { clamp_roughness: false, ..opts.clone() }),
-            clamp: opts.clamp_roughness,
+            bare: opts.walk_of(&bare, opts.walk.clamp_roughness),
+            patina: opts.walk_of(stack, false),
+            clamp: opts.walk.clamp_roughness,
             bare_alpha,
             tint: opts.tint.clone(),
             extent: opts.extent,
@@ -287,7 +323,7 @@ impl Patina {
             let target = if iface.mf.is_smooth() { (0.0, 0.0) } else { (iface.mf.alpha_x, iface.mf.alpha_y) };
             let alpha = (lerp(self.bare_alpha.0, target.0), lerp(self.bare_alpha.1, target.1));
             let top = SpLayer::Dielectric {
-                iface: single_pass::Interface {
+                iface: SpInterface {
                     mf: iface.mf.with_alpha(alpha.0, alpha.1),
                     eta: eta_top.clone(),
                     kappa: iface.kappa.clone(),
@@ -300,7 +336,7 @@ impl Patina {
             };
             let base = match base {
                 SpLayer::Conductor { iface: b, diffuse } => SpLayer::Conductor {
-                    iface: single_pass::Interface {
+                    iface: SpInterface {
                         mf: if self.clamp && !b.mf.is_smooth() {
                             b.mf.with_alpha(b.mf.alpha_x.max(alpha.0), b.mf.alpha_y.max(alpha.1))
                         } else {
@@ -324,6 +360,75 @@ impl Patina {
         }
         for (o, b) in out.iter_mut().zip(&bare) {
             *o = (1.0 - w) * b + w * *o;
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::models::common::testing::{conductor, dielectric, dir, f, lambert, stack};
+    use crate::models::microfacet::smooth_coat_lambert;
+    use crate::optics::distribution::G2Form;
+    use crate::optics::fresnel::{diffuse_reflectance, FresnelForm};
+
+    fn options(interreflection: bool) -> Options {
+        let walk = WalkOptions {
+            g2: G2Form::VCavity,
+            fresnel: FresnelForm::Exact,
+            clamp_roughness: true,
+            eta2: true,
+            interreflection,
+            conductor_interreflection: false,
+        };
+        let (extent, transition, tint) = (0.5, 0.1, vec![1.0]);
+        let distribution = Distribution::Beckmann;
+        Options { walk, distribution, precomputed: false, extent, transition, tint, transport_fit: false }
+    }
+
+    fn model(layers: Vec<Layer>, interreflection: bool) -> Prepared {
+        prepare(&stack(layers), &options(interreflection)).unwrap()
+    }
+
+    #[test]
+    fn a_smooth_coat_over_lambert_is_the_closed_form() {
+        // T₁₂ = 1 − F(θL), t = T₂₁ for a smooth coat, Snell's law and 1/η²: with the inter-reflections the exact
+        // smooth-coat result; without them exactly the single pass, which lacks the factor 1/(1 − ρ F̄_int).
+        let f_int = diffuse_reflectance(1.0 / 1.5);
+        for (interreflection, gain) in [(true, 1.0), (false, 1.0 - 0.8 * f_int)] {
+            let m = model(vec![dielectric(1.5, 0.0, 0.0, 0.0, 0.0), lambert(0.8)], interreflection);
+            for (ti, to) in [(0.0, 0.0), (30.0, 60.0), (85.0, 45.0)] {
+                let (wi, wo) = (dir(ti, 0.0), dir(to, 135.0));
+                let exact = gain * smooth_coat_lambert(0.8, 1.5, f_int, wi.z, wo.z);
+                assert!((f(&m, wi, wo, 1)[0] / exact - 1.0).abs() < 1e-13, "({ti}, {to})");
+            }
+        }
+    }
+
+    #[test]
+    fn an_index_matched_coat_shows_its_base() {
+        // A smooth coat of η = 1 reflects nothing, transmits everything and bends nothing: f is the base's
+        // Torrance–Sparrow lobe (Beckmann, V-cavity), exactly.
+        let base = conductor(0.27, 3.4, (0.25, 0.25));
+        let m = model(vec![dielectric(1.0, 0.0, 0.0, 0.0, 0.0), base.clone()], false);
+        let mf = base.microfacet(Distribution::Beckmann).unwrap();
+        for (wi, wo) in [(dir(20.0, 0.0), dir(30.0, 170.0)), (dir(60.0, 40.0), dir(10.0, 250.0))] {
+            let exact = bsdf::rough_conductor(&mf, G2Form::VCavity, 0.27, 3.4, wi, wo);
+            assert!((f(&m, wi, wo, 1)[0] / exact - 1.0).abs() < 1e-13, "{wi} {wo}");
+        }
+    }
+
+    #[test]
+    fn an_absorbing_slab_attenuates_by_beer_lambert_along_the_refracted_directions() {
+        // f(d) / f(0) = exp(−σ d (1/μi′ + 1/μo′)), μ′ the cosines refracted into the coat (Snell).
+        let (sigma, d, eta) = (0.7, 0.5, 1.5);
+        let clear = model(vec![dielectric(eta, 0.0, 0.0, 0.0, 0.0), lambert(0.8)], false);
+        let tinted = model(vec![dielectric(eta, 0.0, d, sigma, 0.0), lambert(0.8)], false);
+        let inside = |w: DVec3| (1.0 - (1.0 - w.z * w.z) / (eta * eta)).sqrt();
+        for (wi, wo) in [(dir(0.0, 0.0), dir(40.0, 90.0)), (dir(70.0, 10.0), dir(80.0, 200.0))] {
+            let ratio = f(&tinted, wi, wo, 1)[0] / f(&clear, wi, wo, 1)[0];
+            let exact = (-sigma * d * (1.0 / inside(wi) + 1.0 / inside(wo))).exp();
+            assert!((ratio / exact - 1.0).abs() < 1e-13, "{ratio} vs {exact}");
         }
     }
 }

@@ -12,6 +12,19 @@ pub enum Distribution {
     Beckmann,
 }
 
+impl Distribution {
+    /// The names `from_str` reads, in the order of `ALL`.
+    pub const NAMES: [&'static str; 2] = ["ggx", "beckmann"];
+    pub const ALL: [Distribution; 2] = [Distribution::Ggx, Distribution::Beckmann];
+}
+
+impl std::str::FromStr for Distribution {
+    type Err = crate::error::Error;
+    fn from_str(s: &str) -> crate::error::Result<Self> {
+        crate::error::parse_choice("distribution", s, &Self::NAMES, &Self::ALL)
+    }
+}
+
 #[derive(Clone, Copy, Debug)]
 pub struct Microfacet {
     pub dist: Distribution,
@@ -204,6 +217,19 @@ pub enum G2Form {
     Separable,
     HeightCorrelated,
     VCavity,
+}
+
+impl G2Form {
+    /// The names `from_str` reads, in the order of `ALL`.
+    pub const NAMES: [&'static str; 3] = ["height_correlated", "separable", "v_cavity"];
+    pub const ALL: [G2Form; 3] = [G2Form::HeightCorrelated, G2Form::Separable, G2Form::VCavity];
+}
+
+impl std::str::FromStr for G2Form {
+    type Err = crate::error::Error;
+    fn from_str(s: &str) -> crate::error::Result<Self> {
+        crate::error::parse_choice("g2", s, &Self::NAMES, &Self::ALL)
+    }
 }
 
 /// V-cavity masking-shadowing of Torrance–Sparrow 1967 / Cook–Torrance 1982:

@@ -115,7 +115,18 @@ pub enum FresnelForm {
     Lazanyi,
 }
 
+impl std::str::FromStr for FresnelForm {
+    type Err = crate::error::Error;
+    fn from_str(s: &str) -> crate::error::Result<Self> {
+        crate::error::parse_choice("fresnel", s, &Self::NAMES, &Self::ALL)
+    }
+}
+
 impl FresnelForm {
+    /// The names `from_str` reads, in the order of `ALL`.
+    pub const NAMES: [&'static str; 3] = ["exact", "schlick", "lazanyi"];
+    pub const ALL: [FresnelForm; 3] = [FresnelForm::Exact, FresnelForm::Schlick, FresnelForm::Lazanyi];
+
     /// Conductor reflectance of η + iκ in the chosen form.
     pub fn conductor(self, cos_i: f64, eta: f64, k: f64) -> f64 {
         match self {

@@ -3,11 +3,15 @@
 //! entry (models/mod.rs).
 
 use super::arrays::{batch, batch_blocks, vec3, Kind, MAX_INPUTS};
+use super::interrupt::interruptible;
 use crate::error::Error;
-use crate::models::{self, sample, ModelInfo, OptionKind, Options, Value};
-use crate::reference::{self, ChannelStack, Exit};
+use crate::models::common::mixture::{self, weight_factor};
+use crate::models::common::options::microsurface;
+use crate::models::{self, Args, ModelInfo, OptionKind, Value};
+use crate::reference::{self, Exit};
 use crate::sampling::Rng;
 use crate::stack::{Layer, Stack};
+use crate::transport::{ChannelStack, Microsurface};
 use pyo3::exceptions::{PyTypeError, PyValueError};
 use pyo3::prelude::*;
 use pyo3::types::{PyBool, PyDict, PyList, PyString};
@@ -63,11 +67,10 @@ pub fn check_layer(layer: &Bound<'_, PyAny>, name: &str) -> PyResult<()> {
 /// Validates a stack description and that `model` can evaluate it with its default options.
 #[pyfunction]
 #[pyo3(signature = (layers, ext_ior, model=None))]
-pub fn check_stack(layers: &Bound<'_, PyList>, ext_ior: f64, model: Option<&str>) -> PyResult<usize> {
+pub fn check_stack(py: Python<'_>, layers: &Bound<'_, PyList>, ext_ior: f64, model: Option<&str>) -> PyResult<usize> {
     let stack = parse_stack(layers, ext_ior)?;
     if let Some(m) = model {
-        let info = models::info(m)?;
-        models::prepare(m, &stack, &Options::parse(m, info.options, &[])?)?;
+        prepared_model(py, &stack, m, None)?;
     }
     Ok(stack.channels)
 }
@@ -90,35 +93,47 @@ fn option_value(key: &str, v: &Bound<'_, PyAny>) -> PyResult<Value> {
 
 /// The stack, its model prepared with the given options, and the model's catalogue entry.
 fn prepared(
+    py: Python<'_>,
     layers: &Bound<'_, PyList>,
     ext_ior: f64,
     model: &str,
     options: Option<&Bound<'_, PyDict>>,
 ) -> PyResult<(Stack, Arc<dyn models::Model>, &'static ModelInfo)> {
     let stack = parse_stack(layers, ext_ior)?;
-    let (p, info) = prepared_model(&stack, model, options)?;
+    let (p, info) = prepared_model(py, &stack, model, options)?;
     Ok((stack, p, info))
 }
 
-/// `model` prepared for `stack` with the options given from Python, and its catalogue entry.
+/// `model` prepared for `stack` with the options given from Python, and its catalogue entry. A preparation that is
+/// not cached (a table to build, seconds for `tabulated`) runs where Ctrl-C stops it.
 pub fn prepared_model(
+    py: Python<'_>,
     stack: &Stack,
     model: &str,
     options: Option<&Bound<'_, PyDict>>,
 ) -> PyResult<(Arc<dyn models::Model>, &'static ModelInfo)> {
-    let (opts, info) = parse_options(model, options)?;
-    Ok((models::prepare(model, stack, &opts)?, info))
+    let (info, args) = parse_options(model, options)?;
+    let prepared = match models::cached(model, stack, &args) {
+        Some(p) => p,
+        None => interruptible(py, || models::prepare(model, stack, &args))?,
+    };
+    Ok((prepared, info))
 }
 
-/// `model`'s options from a Python dict, checked against its catalogue entry.
-pub fn parse_options(model: &str, options: Option<&Bound<'_, PyDict>>) -> PyResult<(Options, &'static ModelInfo)> {
-    let info = models::info(model)?;
+/// `model`'s entry and its options from a Python dict, checked against its table (models::parse: an option it
+/// does not take is a TypeError listing its options and per-element inputs).
+pub fn parse_options(model: &str, options: Option<&Bound<'_, PyDict>>) -> PyResult<(&'static ModelInfo, Args)> {
     let mut given = Vec::new();
     for (k, v) in options.into_iter().flat_map(|d| d.iter()) {
         let key: String = k.extract()?;
         given.push((key.clone(), option_value(&key, &v)?));
     }
-    Ok((Options::parse(model, info.options, &given)?, info))
+    Ok(models::parse(model, &given)?)
+}
+
+/// The reference's microsurface from its options in a Python dict (`distribution`, `g2`).
+pub fn reference_surface(options: Option<&Bound<'_, PyDict>>) -> PyResult<Microsurface> {
+    Ok(microsurface(&parse_options("reference", options)?.1)?)
 }
 
 /// The per-element inputs given for a model: (name, array, check) in the order given, and for each of the model's
@@ -167,7 +182,7 @@ fn call<'a, 'py>(
     inputs: Option<&Bound<'py, PyDict>>,
     arrays: &'a mut Vec<(String, Bound<'py, PyAny>, Kind)>,
 ) -> PyResult<Call<'a, 'py>> {
-    let (stack, p, info) = prepared(layers, ext_ior, model, options)?;
+    let (stack, p, info) = prepared(layers.py(), layers, ext_ior, model, options)?;
     let (given, slot, _) = given_inputs(info, &*p, inputs, 2)?;
     *arrays = given;
     let mut all = first.to_vec();
@@ -175,12 +190,52 @@ fn call<'a, 'py>(
     Ok((p, stack.channels, all, slot))
 }
 
+/// Whether `device` ("cpu", "gpu" or "auto") means the GPU for `model` with `options` (and per-element inputs when
+/// `inputs`) whose result is float32 anyway when `float32`; `model` None: Oat's materials, which the GPU always
+/// takes. The rule is device.rs's; ValueError / RuntimeError where "gpu" cannot be had.
+#[pyfunction]
+#[pyo3(signature = (device, model=None, options=None, inputs=false, float32=true))]
+pub fn use_gpu(
+    device: &str,
+    model: Option<&str>,
+    options: Option<&Bound<'_, PyDict>>,
+    inputs: bool,
+    float32: bool,
+) -> PyResult<bool> {
+    let args = model.map(|m| parse_options(m, options)).transpose()?;
+    let refusal = || -> Option<String> {
+        let (m, (_, args)) = (model?, args.as_ref()?);
+        gpu_refusal(m, args, inputs)
+    };
+    Ok(crate::device::choose(device, refusal, float32)?)
+}
+
+#[cfg(feature = "gpu")]
+use crate::gpu::refusal as gpu_refusal;
+
+/// Without the GPU path there is no adapter, so device::choose never asks.
+#[cfg(not(feature = "gpu"))]
+fn gpu_refusal(_: &str, _: &Args, _: bool) -> Option<String> {
+    None
+}
+
+/// The payload of lamina's cache entry at `path` when it is there and intact (src/cache.rs), else None.
+#[pyfunction]
+pub fn cache_read<'py>(py: Python<'py>, path: std::path::PathBuf) -> Option<Bound<'py, pyo3::types::PyBytes>> {
+    crate::cache::read(&path).map(|payload| pyo3::types::PyBytes::new(py, &payload))
+}
+
+/// Writes `payload` as lamina's cache entry at `path`, atomically (src/cache.rs).
+#[pyfunction]
+pub fn cache_write(path: std::path::PathBuf, payload: &[u8]) {
+    crate::cache::write(&path, payload)
+}
+
 /// The catalogue: one dict per model (name, summary, options, inputs, properties).
 #[pyfunction]
 #[pyo3(name = "models")]
 pub fn catalogue<'py>(py: Python<'py>) -> PyResult<Vec<Bound<'py, PyDict>>> {
-    models::CATALOGUE
-        .iter()
+    models::entries()
         .map(|m| {
             let d = PyDict::new(py);
             d.set_item("name", m.name)?;
@@ -191,10 +246,16 @@ pub fn catalogue<'py>(py: Python<'py>) -> PyResult<Vec<Bound<'py, PyDict>>> {
                 od.set_item("name", o.name)?;
                 od.set_item("doc", o.doc)?;
                 match o.kind {
-                    OptionKind::Choice { choices, default } => {
+                    OptionKind::Choice { .. } | OptionKind::Variant { .. } => {
                         od.set_item("kind", "choice")?;
-                        od.set_item("choices", choices.to_vec())?;
-                        od.set_item("default", default)?;
+                        od.set_item("choices", o.choices())?;
+                        od.set_item(
+                            "default",
+                            match o.default() {
+                                Value::Text(t) => t,
+                                _ => unreachable!("a choice's default is one of its strings"),
+                            },
+                        )?;
                     }
                     OptionKind::Flag { default } => {
                         od.set_item("kind", "flag")?;
@@ -280,14 +341,14 @@ pub fn sample_stack<'py>(
     let (p, c, all, slot) = call(layers, ext_ior, model, first, options, inputs, &mut arrays)?;
     batch(py, &all, 3 + c + 1, |r, o| {
         let wo = vec3(&r[0]);
-        let (wi, pdf) = sample::sample(&*p, wo, r[1]);
+        let (wi, pdf) = mixture::sample(&*p, wo, r[1]);
         o[..3].copy_from_slice(&wi.to_array());
         if pdf > 0.0 {
             let row: [Option<[f64; 3]>; models::MAX_INPUTS] =
                 std::array::from_fn(|j| slot.get(j).copied().flatten().map(|k| r[k]));
             let (weight, tail) = o[3..].split_at_mut(c);
             models::eval_one(&*p, wi, wo, &row[..slot.len()], weight);
-            weight.iter_mut().for_each(|w| *w *= wi.z / pdf);
+            weight.iter_mut().for_each(|w| *w *= weight_factor(wi, pdf));
             tail[0] = pdf;
         }
     })
@@ -306,9 +367,9 @@ pub fn pdf<'py>(
     wo: &Bound<'py, PyAny>,
     options: Option<&Bound<'py, PyDict>>,
 ) -> PyResult<Bound<'py, PyAny>> {
-    let (_, p, _) = prepared(layers, ext_ior, model, options)?;
+    let (_, p, _) = prepared(py, layers, ext_ior, model, options)?;
     let dirs = [("wi", wi, Kind::Direction), ("wo", wo, Kind::Direction)];
-    batch(py, &dirs, 1, |r, o| o[0] = sample::pdf(&*p, vec3(&r[0]), vec3(&r[1])))
+    batch(py, &dirs, 1, |r, o| o[0] = mixture::pdf(&*p, vec3(&r[0]), vec3(&r[1])))
 }
 
 /// The Dirac (mirror) reflection at wo per channel: (..., channels).
@@ -322,7 +383,7 @@ pub fn specular<'py>(
     wo: &Bound<'py, PyAny>,
     options: Option<&Bound<'py, PyDict>>,
 ) -> PyResult<Bound<'py, PyAny>> {
-    let (stack, p, _) = prepared(layers, ext_ior, model, options)?;
+    let (stack, p, _) = prepared(py, layers, ext_ior, model, options)?;
     batch(py, &[("wo", wo, Kind::Direction)], stack.channels, |r, o| p.specular(vec3(&r[0]), o))
 }
 
@@ -331,21 +392,19 @@ pub fn specular<'py>(
 /// that channel's weight (the others 0). (..., 3 + channels + 1) rows as `sample`, with pdf 0: a walk's exit
 /// density has no closed form. Dirac paths are included.
 #[pyfunction]
-#[pyo3(signature = (layers, ext_ior, wo, u, distribution="ggx", g2="height_correlated"))]
-#[allow(clippy::too_many_arguments)]
+#[pyo3(signature = (layers, ext_ior, wo, u, options=None))]
 pub fn reference_sample<'py>(
     py: Python<'py>,
     layers: &Bound<'py, PyList>,
     ext_ior: f64,
     wo: &Bound<'py, PyAny>,
     u: &Bound<'py, PyAny>,
-    distribution: &str,
-    g2: &str,
+    options: Option<&Bound<'py, PyDict>>,
 ) -> PyResult<Bound<'py, PyAny>> {
     let stack = parse_stack(layers, ext_ior)?;
-    let (dist, g2) = (super::primitives::parse_distribution(distribution)?, super::primitives::parse_g2(g2)?);
+    let surface = reference_surface(options)?;
     let c = stack.channels;
-    let stacks: Vec<ChannelStack> = (0..c).map(|k| ChannelStack::new(&stack, k, dist, g2)).collect();
+    let stacks: Vec<ChannelStack> = (0..c).map(|k| ChannelStack::new(&stack, k, surface)).collect();
     let inputs = [("wo", wo, Kind::Direction), ("u", u, Kind::Range(3, 0.0, 1.0))];
     batch(py, &inputs, 3 + c + 1, |r, o| {
         let wo = vec3(&r[0]);
@@ -366,6 +425,8 @@ impl From<Error> for PyErr {
         match e {
             Error::Value(s) => PyValueError::new_err(s),
             Error::Type(s) => PyTypeError::new_err(s),
+            Error::Device(s) => pyo3::exceptions::PyRuntimeError::new_err(s),
+            Error::Interrupted => pyo3::exceptions::PyKeyboardInterrupt::new_err("interrupted"),
         }
     }
 }

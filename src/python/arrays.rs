@@ -120,7 +120,7 @@ impl Block {
     /// again to find it.
     fn validate(&mut self, j: usize, kind: Kind) -> Option<(usize, bool)> {
         #[cfg(target_arch = "x86_64")]
-        if models::has_avx2() {
+        if models::common::block::has_avx2() {
             // SAFETY: the CPU supports every feature the function is compiled for.
             return unsafe { self.validate_avx2(j, kind) };
         }

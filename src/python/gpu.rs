@@ -24,6 +24,13 @@ pub fn gpu_adapter(py: Python<'_>) -> PyResult<Bound<'_, PyDict>> {
     Ok(d)
 }
 
+/// Fault injection for lamina's tests (tests/faults.py): the GPU destroys itself after `dispatches` more dispatches,
+/// as a lost device would stop.
+#[pyfunction]
+pub fn gpu_lose_after(dispatches: i64) -> PyResult<()> {
+    gpu::lose_after(dispatches).map_err(|e| PyRuntimeError::new_err(e.to_string()))
+}
+
 /// The models with a GPU implementation.
 #[pyfunction]
 pub fn gpu_models() -> Vec<&'static str> {
@@ -59,9 +66,9 @@ pub fn gpu_resident_seconds<'py>(
     options: Option<&Bound<'py, PyDict>>,
 ) -> PyResult<f64> {
     let stack = parse_stack(layers, ext_ior)?;
-    let (opts, _) = parse_options(model, options)?;
+    let (_, args) = parse_options(model, options)?;
     let (flat, _) = pairs(py, [("wi", wi, Kind::Direction), ("wo", wo, Kind::Direction)])?;
-    Ok(py.detach(|| gpu::resident_seconds(model, &stack, &opts, &flat, repeats))?)
+    Ok(py.detach(|| gpu::resident_seconds(model, &stack, &args, &flat, repeats))?)
 }
 
 /// f(wi, wo) on the GPU: (..., channels) float32, for (already broadcast) directions (..., 3).
@@ -144,12 +151,12 @@ fn query<'py>(
     options: Option<&Bound<'py, PyDict>>,
 ) -> PyResult<Bound<'py, PyAny>> {
     let stack = parse_stack(layers, ext_ior)?;
-    let (opts, _) = parse_options(model, options)?;
-    if !gpu::supports(model) {
-        gpu::kernel(model, &stack, &opts)?; // the error naming the GPU models
+    let (_, args) = parse_options(model, options)?;
+    if let Some(why) = gpu::refusal(model, &args, false) {
+        return Err(pyo3::exceptions::PyValueError::new_err(why));
     }
     let (flat, mut shape) = pairs(py, arrays)?;
-    let values = py.detach(|| gpu::run(query, model, &stack, &opts, &flat))?;
+    let values = py.detach(|| gpu::run(query, model, &stack, &args, &flat))?;
     shape.push(query.width(stack.channels));
     numpy::PyArray1::from_vec(py, values).reshape(shape).map(|a| a.into_any())
 }
@@ -174,7 +181,7 @@ pub fn render_gpu<'py>(
     spp: usize,
     seed: u64,
 ) -> PyResult<Bound<'py, PyAny>> {
-    let (opts, _) = parse_options(model, options)?;
+    let (_, args) = parse_options(model, options)?;
     let mut parsed = Vec::new();
     for item in stacks.iter() {
         let (layers, ext_ior): (Bound<'py, PyList>, f64) = item.extract()?;
@@ -182,7 +189,7 @@ pub fn render_gpu<'py>(
     }
     let mut scene = scene(shape, camera, lights, width, height)?;
     scene.env = env.map(super::render::environment).transpose()?.map(|e| e.gpu_data(spp, seed));
-    let image = py.detach(|| gpu::render(model, &parsed, &opts, &scene))?;
+    let image = py.detach(|| gpu::render(model, &parsed, &args, &scene))?;
     numpy::PyArray1::from_vec(py, image).reshape([parsed.len(), height, width, 3]).map(|a| a.into_any())
 }
 
@@ -233,6 +240,6 @@ pub fn render_oat_gpu<'py>(
 ) -> PyResult<Bound<'py, PyAny>> {
     let prepared: Vec<_> = materials.iter().map(|m| m.get().0.clone()).collect();
     let scene = scene(shape, camera, lights, width, height)?;
-    let image = py.detach(|| gpu::oat::render(&prepared, &scene))?;
+    let image = py.detach(|| crate::oat::gpu::render(&prepared, &scene))?;
     numpy::PyArray1::from_vec(py, image).reshape([prepared.len(), height, width, 3]).map(|a| a.into_any())
 }

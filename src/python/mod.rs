@@ -7,6 +7,7 @@ mod api;
 mod arrays;
 #[cfg(feature = "gpu")]
 mod gpu;
+mod interrupt;
 mod oat;
 mod primitives;
 mod reference;
@@ -14,17 +15,34 @@ mod render;
 
 use pyo3::prelude::*;
 
+/// A warning of lamina's core (the cache's), as a Python UserWarning.
+fn warn(message: &str) {
+    Python::attach(|py| {
+        let category = py.get_type::<pyo3::exceptions::PyUserWarning>();
+        let message = std::ffi::CString::new(message.replace('\0', " ")).unwrap_or_default();
+        // Under a warnings filter of "error" the warning cannot be raised from here (the work goes on): it is shown.
+        if let Err(e) = PyErr::warn(py, &category, &message, 1) {
+            e.print(py);
+        }
+    });
+}
+
 #[pymodule]
 fn _lamina(m: &Bound<'_, PyModule>) -> PyResult<()> {
-    let names: Vec<&str> = crate::models::CATALOGUE.iter().map(|i| i.name).collect();
+    let names: Vec<&str> = crate::models::entries().map(|i| i.name).collect();
     m.add("MODELS", names)?;
+    m.add("DEVICES", crate::device::DEVICES.to_vec())?;
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     m.add("SOURCE_HASH", crate::SOURCE_HASH)?;
     m.add("REFERENCE_MAX_DEPTH", crate::reference::MAX_DEPTH)?;
-    m.add("OAT_POISSON_DISC", crate::render::oat::POISSON_DISC.to_vec())?;
+    m.add("OAT_POISSON_DISC", crate::oat::POISSON_DISC.to_vec())?;
     m.add_function(wrap_pyfunction!(api::check_layer, m)?)?;
     m.add_function(wrap_pyfunction!(api::check_stack, m)?)?;
     m.add_function(wrap_pyfunction!(api::catalogue, m)?)?;
+    m.add_function(wrap_pyfunction!(api::use_gpu, m)?)?;
+    m.add_function(wrap_pyfunction!(api::cache_read, m)?)?;
+    m.add_function(wrap_pyfunction!(api::cache_write, m)?)?;
+    crate::cache::set_warn(warn);
     m.add_function(wrap_pyfunction!(api::eval, m)?)?;
     m.add_function(wrap_pyfunction!(api::sample_stack, m)?)?;
     m.add_function(wrap_pyfunction!(api::pdf, m)?)?;
@@ -49,6 +67,7 @@ fn _lamina(m: &Bound<'_, PyModule>) -> PyResult<()> {
     {
         m.add_function(wrap_pyfunction!(gpu::gpu_adapter, m)?)?;
         m.add_function(wrap_pyfunction!(gpu::gpu_models, m)?)?;
+        m.add_function(wrap_pyfunction!(gpu::gpu_lose_after, m)?)?;
         m.add_function(wrap_pyfunction!(gpu::eval_gpu, m)?)?;
         m.add_function(wrap_pyfunction!(gpu::sample_gpu, m)?)?;
         m.add_function(wrap_pyfunction!(gpu::pdf_gpu, m)?)?;

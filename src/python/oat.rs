@@ -1,8 +1,8 @@
-//! Bindings of Oat 2006 (src/render/oat.rs): its primitives on row arrays, the light map, and materials that
-//! `render_oat` renders in bands of rows like `render`. python/lamina/oat.py checks shapes and ranges.
+//! Bindings of Oat 2006 (src/oat): its primitives on row arrays, the light map, and materials that `render_oat`
+//! renders in bands of rows like `render`. python/lamina/oat.py checks shapes and ranges.
 
 use super::render::{camera, shape, texture};
-use crate::render::oat::{self, InnerLayer, Material, Prepared, Variant};
+use crate::oat::{self, InnerLayer, Material, Prepared, Technique};
 use crate::render::{render_rows, Border, Light, Scene, Shader, Texture};
 use glam::DVec3;
 use numpy::{PyArray1, PyArrayMethods, PyReadonlyArray1, PyReadonlyArray2, PyReadonlyArray3};
@@ -129,10 +129,10 @@ impl OatMaterial {
         dilate: usize,
         light_map: Option<PyReadonlyArray3<'_, f64>>,
     ) -> PyResult<Self> {
-        let variant = match variant {
-            "full" => Variant::Full,
-            "normal_filtered" => Variant::NormalFiltered,
-            "vertex_normal" => Variant::VertexNormal,
+        let technique = match variant {
+            "full" => Technique::Full,
+            "normal_filtered" => Technique::NormalFiltered,
+            "vertex_normal" => Technique::VertexNormal,
             _ => {
                 return Err(PyValueError::new_err(format!(
                     "variant must be 'full', 'normal_filtered' or 'vertex_normal', got {variant:?}"
@@ -154,7 +154,7 @@ impl OatMaterial {
             outer_opacity: texture(outer_opacity)?,
             outer_normal: texture(outer_normal)?,
             inner,
-            variant,
+            technique,
             shadowing,
             border: self::border(border)?,
             texel,
@@ -180,7 +180,7 @@ pub fn render_oat<'py>(
     first: usize,
     rows: usize,
 ) -> PyResult<Bound<'py, PyAny>> {
-    let shaders: Vec<Shader> = materials.iter().map(|m| Shader::Oat(m.get().0.clone())).collect();
+    let shaders: Vec<Shader> = materials.iter().map(|m| Shader::Surface(m.get().0.clone())).collect();
     let scene = Scene {
         shape: self::shape(shape)?,
         camera: self::camera(camera),
@@ -191,7 +191,10 @@ pub fn render_oat<'py>(
         spp: 1,
         seed: 0,
     };
-    let mut out = vec![0f32; shaders.len() * rows * width * 3];
-    py.detach(|| render_rows(&scene, &shaders, first, &mut out));
+    let out = super::interrupt::interruptible(py, || {
+        let mut out = vec![0f32; shaders.len() * rows * width * 3];
+        render_rows(&scene, &shaders, first, &mut out)?;
+        Ok(out)
+    })?;
     PyArray1::from_vec(py, out).reshape([shaders.len(), rows, width, 3]).map(|a| a.into_any())
 }

@@ -2,38 +2,10 @@
 
 use super::arrays::{batch, vec3, Kind};
 use crate::bsdf;
-use crate::optics::distribution::{Distribution, G2Form, Microfacet};
+use crate::optics::distribution::{G2Form, Microfacet};
 use crate::optics::fresnel::{self, FresnelForm};
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
-
-pub fn parse_distribution(name: &str) -> PyResult<Distribution> {
-    match name {
-        "ggx" => Ok(Distribution::Ggx),
-        "beckmann" => Ok(Distribution::Beckmann),
-        _ => Err(PyValueError::new_err(format!("distribution must be 'ggx' or 'beckmann', got {name:?}"))),
-    }
-}
-
-pub fn parse_g2(name: &str) -> PyResult<G2Form> {
-    match name {
-        "separable" => Ok(G2Form::Separable),
-        "height_correlated" => Ok(G2Form::HeightCorrelated),
-        "v_cavity" => Ok(G2Form::VCavity),
-        _ => Err(PyValueError::new_err(format!(
-            "g2 must be 'separable', 'height_correlated' or 'v_cavity', got {name:?}"
-        ))),
-    }
-}
-
-fn parse_fresnel(name: &str) -> PyResult<FresnelForm> {
-    match name {
-        "exact" => Ok(FresnelForm::Exact),
-        "schlick" => Ok(FresnelForm::Schlick),
-        "lazanyi" => Ok(FresnelForm::Lazanyi),
-        _ => Err(PyValueError::new_err(format!("fresnel must be 'exact', 'schlick' or 'lazanyi', got {name:?}"))),
-    }
-}
 
 /// Steinberg's table values (t, s) at (μ, α, η) in the `lut` form ('tabulated' or 'fitted'): (..., 2).
 #[pyfunction]
@@ -94,7 +66,7 @@ pub fn fresnel_conductor<'py>(
     k: &Bound<'py, PyAny>,
     form: &str,
 ) -> PyResult<Bound<'py, PyAny>> {
-    let form = parse_fresnel(form)?;
+    let form = form.parse::<FresnelForm>()?;
     let inputs = [("cos_i", cos_i, COSINE), ("eta", eta, POSITIVE), ("k", k, NON_NEGATIVE)];
     scalar_kernel(py, inputs, |[c, e, k]| form.conductor(c, e, k))
 }
@@ -130,7 +102,7 @@ impl MicrofacetSpec {
         if !angle.is_finite() {
             return Err(PyValueError::new_err(format!("angle must be finite radians, got {angle}")));
         }
-        Ok(Microfacet::new(parse_distribution(distribution)?, alpha_x, alpha_y, angle))
+        Ok(Microfacet::new(distribution.parse()?, alpha_x, alpha_y, angle))
     }
 }
 
@@ -159,7 +131,7 @@ pub fn microfacet_g2<'py>(
     mf: MicrofacetSpec,
     g2: &str,
 ) -> PyResult<Bound<'py, PyAny>> {
-    let (mf, form) = (mf.build()?, parse_g2(g2)?);
+    let (mf, form) = (mf.build()?, g2.parse::<G2Form>()?);
     let inputs = [("wi", wi, Kind::Direction), ("wo", wo, Kind::Direction), ("m", m, Kind::Direction)];
     batch(py, &inputs, 1, |r, o| o[0] = mf.g2(form, vec3(&r[0]), vec3(&r[1]), vec3(&r[2])))
 }
@@ -206,7 +178,7 @@ pub fn interface_bsdf<'py>(
     mf: MicrofacetSpec,
     g2: &str,
 ) -> PyResult<Bound<'py, PyAny>> {
-    let (mf, form) = (mf.build()?, parse_g2(g2)?);
+    let (mf, form) = (mf.build()?, g2.parse::<G2Form>()?);
     if eta.is_empty() || eta.len() != k.len() {
         return Err(PyValueError::new_err(format!(
             "eta and k need the same number (> 0) of channels, got {} and {}",

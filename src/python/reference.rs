@@ -1,13 +1,13 @@
 //! Bindings of the Monte Carlo reference and of Belcour's lobe statistics.
 
-use super::api::parse_stack;
-use super::primitives::{parse_distribution, parse_g2};
-use crate::models::{belcour, Options};
+use super::api::{parse_stack, reference_surface};
+use crate::models::belcour;
 use crate::reference;
+use crate::transport::ChannelStack;
 use glam::DVec3;
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
-use pyo3::types::PyList;
+use pyo3::types::{PyDict, PyList};
 use rayon::prelude::*;
 
 /// Lobe energies (n, lobes, channels), covariances (n, lobes, [xx, xy, yy]) and GGX (αx, αy, angle) (n, lobes, 3).
@@ -18,7 +18,7 @@ type Lobes = (Vec<Vec<Vec<f64>>>, Vec<Vec<[f64; 3]>>, Vec<Vec<[f64; 3]>>);
 pub fn belcour_lobes(layers: &Bound<'_, PyList>, ext_ior: f64, wo: Vec<[f64; 3]>) -> PyResult<Lobes> {
     let stack = parse_stack(layers, ext_ior)?;
     // Lobes come straight from the adding-doubling: no evaluation table is needed.
-    let p = belcour::prepare(&stack, &Options { belcour_table: false, ..Options::default() })?;
+    let p = belcour::prepare(&stack, &belcour::Options { interpolated: false, ..belcour::Options::default() })?;
     if let Some(w) = wo.iter().find(|w| !(w.iter().all(|x| x.is_finite()) && w[2] > 0.0)) {
         return Err(PyValueError::new_err(format!("wi must point above the surface (z > 0), got {w:?}")));
     }
@@ -37,7 +37,7 @@ type Sums = (Vec<Vec<f64>>, Vec<Vec<f64>>, Vec<u64>);
 /// escaping energy in `n_theta` x `n_phi` bins uniform in (θo, φo) (1 x 1: the albedo). Returns the per-channel
 /// sums, sums of squares (each (channels, bins)) and truncated-path counts, to be merged by the caller.
 #[pyfunction]
-#[pyo3(signature = (layers, ext_ior, wi, first, samples, seed, n_theta=1, n_phi=1, distribution="ggx", g2="height_correlated"))]
+#[pyo3(signature = (layers, ext_ior, wi, first, samples, seed, n_theta=1, n_phi=1, options=None))]
 #[allow(clippy::too_many_arguments)]
 pub fn reference_tally<'py>(
     py: Python<'py>,
@@ -49,11 +49,10 @@ pub fn reference_tally<'py>(
     seed: u64,
     n_theta: usize,
     n_phi: usize,
-    distribution: &str,
-    g2: &str,
+    options: Option<&Bound<'py, PyDict>>,
 ) -> PyResult<Sums> {
     let stack = parse_stack(layers, ext_ior)?;
-    let (dist, g2) = (parse_distribution(distribution)?, parse_g2(g2)?);
+    let surface = reference_surface(options)?;
     let wi = DVec3::from_array(wi);
     if !wi.is_finite() || wi.z <= 0.0 || (wi.length() - 1.0).abs() > 1e-9 {
         return Err(PyValueError::new_err(format!("wi must be a unit direction above the surface (z > 0), got {wi}")));
@@ -69,7 +68,7 @@ pub fn reference_tally<'py>(
     let tallies: Vec<reference::Tally> = py.detach(|| {
         (0..stack.channels)
             .map(|c| {
-                let cs = reference::ChannelStack::new(&stack, c, dist, g2);
+                let cs = ChannelStack::new(&stack, c, surface);
                 reference::run(&cs, wi, (first, samples), seed, n_theta * n_phi, bin)
             })
             .collect()
@@ -85,7 +84,7 @@ pub fn reference_tally<'py>(
 /// `first..first + samples` each: per-pair, per-channel sums and sums of squares ((pairs, channels) each) and the
 /// number of truncated paths per channel.
 #[pyfunction]
-#[pyo3(signature = (layers, ext_ior, wi, wo, first, samples, seed, distribution="ggx", g2="height_correlated"))]
+#[pyo3(signature = (layers, ext_ior, wi, wo, first, samples, seed, options=None))]
 #[allow(clippy::too_many_arguments)]
 pub fn reference_f<'py>(
     py: Python<'py>,
@@ -96,11 +95,10 @@ pub fn reference_f<'py>(
     first: u64,
     samples: u64,
     seed: u64,
-    distribution: &str,
-    g2: &str,
+    options: Option<&Bound<'py, PyDict>>,
 ) -> PyResult<Sums> {
     let stack = parse_stack(layers, ext_ior)?;
-    let (dist, g2) = (parse_distribution(distribution)?, parse_g2(g2)?);
+    let surface = reference_surface(options)?;
     if wi.len() != wo.len() || samples == 0 {
         return Err(PyValueError::new_err("wi and wo need the same number of rows, and samples must be positive"));
     }
@@ -114,7 +112,7 @@ pub fn reference_f<'py>(
     let per_channel: Vec<Vec<(f64, f64, u64)>> = py.detach(|| {
         (0..stack.channels)
             .map(|c| {
-                let cs = reference::ChannelStack::new(&stack, c, dist, g2);
+                let cs = ChannelStack::new(&stack, c, surface);
                 (0..wi.len())
                     .into_par_iter()
                     .map(|p| reference::run_f(&cs, wi[p], wo[p], (first, samples), seed))

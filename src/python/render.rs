@@ -1,12 +1,12 @@
 //! Bindings of the renderer (src/render): one call renders a band of image rows for a batch of stacks, with the
-//! GIL released; python/lamina/render.py loops over bands (progress bar, Ctrl-C) and builds the scene.
+//! GIL released; python/lamina/renderer.py loops over bands (progress bar, Ctrl-C) and builds the scene.
 
-use super::api::{parse_stack, prepared_model};
-use super::primitives::{parse_distribution, parse_g2};
-use crate::reference::ChannelStack;
+use super::api::{parse_stack, prepared_model, reference_surface};
+use super::interrupt::interruptible;
 use crate::render::env::{self, Environment};
 use crate::render::mesh::{self, Mesh};
 use crate::render::{io, render_rows, Camera, Light, Scene, Shader, Shape, Texture};
+use crate::transport::ChannelStack;
 use glam::DVec3;
 use numpy::{PyArray1, PyArrayMethods, PyReadonlyArray2, PyReadonlyArray3, PyUntypedArrayMethods};
 use pyo3::exceptions::{PyTypeError, PyValueError};
@@ -113,17 +113,10 @@ pub fn render<'py>(
             return Err(PyValueError::new_err(format!("stacks[{k}]: render takes RGB stacks (3 channels)")));
         }
         shaders.push(if model == "reference" {
-            let get = |key: &str, default: &str| -> PyResult<String> {
-                Ok(match options.map(|o| o.get_item(key)).transpose()?.flatten() {
-                    Some(v) => v.extract()?,
-                    None => default.to_string(),
-                })
-            };
-            let (dist, g2) =
-                (parse_distribution(&get("distribution", "ggx")?)?, parse_g2(&get("g2", "height_correlated")?)?);
-            Shader::Reference((0..3).map(|c| ChannelStack::new(&stack, c, dist, g2)).collect())
+            let surface = reference_surface(options)?;
+            Shader::Reference((0..3).map(|c| ChannelStack::new(&stack, c, surface)).collect())
         } else {
-            let (p, info) = prepared_model(&stack, model, options)?;
+            let (p, info) = prepared_model(py, &stack, model, options)?;
             let mut slots: Vec<Option<Texture>> = info.inputs.iter().map(|_| None).collect();
             for (name, a) in textures.into_iter().flat_map(|d| d.iter()) {
                 let name: String = name.extract()?;
@@ -137,8 +130,11 @@ pub fn render<'py>(
         });
     }
     let scene = Scene { shape, camera, lights, env, width, height, spp, seed };
-    let mut out = vec![0f32; shaders.len() * rows * width * 3];
-    py.detach(|| render_rows(&scene, &shaders, first, &mut out));
+    let out = interruptible(py, || {
+        let mut out = vec![0f32; shaders.len() * rows * width * 3];
+        render_rows(&scene, &shaders, first, &mut out)?;
+        Ok(out)
+    })?;
     PyArray1::from_vec(py, out).reshape([shaders.len(), rows, width, 3]).map(|a| a.into_any())
 }
 

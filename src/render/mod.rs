@@ -8,19 +8,21 @@
 //! are passed to the models in that frame (docs/conventions.md).
 //!
 //! Integrator: directional and point lights are evaluated exactly, Σ f(l, v) max(0, n·l) E, without noise. An
-//! environment adds `spp` samples per pixel, each one light sample (`env.rs`) and one BSDF sample (`models::sample`)
+//! environment adds `spp` samples per pixel, each one light sample (`env.rs`) and one BSDF sample (models/common/mixture.rs)
 //! combined by the power heuristic (Veach 1997 §9.2), plus the model's Dirac reflection of the map. The reference
 //! estimates f by `reference::estimate_f` for each light and the environment by random walks from the viewer.
 
 pub mod env;
 pub mod io;
 pub mod mesh;
-pub mod oat;
 
-use crate::models::{eval_fan, sample, Model, MAX_INPUTS};
+use crate::error::Result;
+use crate::models::common::mixture::{mixture_pdf, sample_mixture, weight_factor};
+use crate::models::{eval_fan, Model, MAX_INPUTS};
 use crate::optics::reflect;
-use crate::reference::{estimate_f, trace, ChannelStack, Exit};
-use crate::sampling::Rng;
+use crate::reference::{estimate_f, trace, Exit};
+use crate::sampling::{power_heuristic, Rng};
+use crate::transport::ChannelStack;
 use env::Environment;
 use glam::DVec3;
 use mesh::Mesh;
@@ -101,16 +103,18 @@ impl Texture {
     }
 }
 
+/// A surface that shades itself from the scene's directional and point lights by its own technique (Oat 2006's
+/// gooey layers, src/oat): the radiance towards the viewer (wo_world, world frame) at a hit.
+pub trait Surface: Send + Sync {
+    fn shade(&self, lights: &[Light], hit: &Hit, wo_world: DVec3) -> [f64; 3];
+}
+
 /// How a material is shaded: a prepared model with its per-element inputs as textures (in the order of the
-/// model's inputs), or the reference (one walk setup per RGB channel).
+/// model's inputs), the reference (one walk setup per RGB channel), or a surface of its own technique.
 pub enum Shader {
-    Model {
-        model: Arc<dyn Model>,
-        textures: Vec<Option<Texture>>,
-    },
+    Model { model: Arc<dyn Model>, textures: Vec<Option<Texture>> },
     Reference(Vec<ChannelStack>),
-    /// Oat 2006's gooey layers (oat.rs): diffuse lights only.
-    Oat(Arc<oat::Prepared>),
+    Surface(Arc<dyn Surface>),
 }
 
 pub struct Scene {
@@ -192,7 +196,7 @@ pub fn pinhole(origin: DVec3, target: DVec3, fov: f64, aspect: f64) -> [DVec3; 3
 }
 
 /// The lights' directions and irradiances at the point p (towards the light, world frame).
-fn incident(lights: &[Light], p: DVec3) -> impl Iterator<Item = (DVec3, [f64; 3])> + '_ {
+pub(crate) fn incident(lights: &[Light], p: DVec3) -> impl Iterator<Item = (DVec3, [f64; 3])> + '_ {
     lights.iter().map(move |l| match *l {
         Light::Directional { direction, irradiance } => (direction, irradiance),
         Light::Point { position, intensity } => {
@@ -200,15 +204,6 @@ fn incident(lights: &[Light], p: DVec3) -> impl Iterator<Item = (DVec3, [f64; 3]
             ((position - p).normalize(), intensity.map(|i| i / r2))
         }
     })
-}
-
-/// The power heuristic with β = 2 (Veach 1997 eq. 9.13) for one sample of each of two strategies.
-fn power_heuristic(pdf: f64, other: f64) -> f64 {
-    if pdf <= 0.0 {
-        0.0
-    } else {
-        pdf * pdf / (pdf * pdf + other * other)
-    }
 }
 
 /// Radiance towards the viewer at a hit: wo_world points to the viewer.
@@ -250,15 +245,14 @@ fn shade(scene: &Scene, shader: &Shader, hit: &Hit, wo_world: DVec3, rng: &mut R
                     let (d, l, p_light) = env.sample(rng.uniform(), rng.uniform());
                     let wi = local(d);
                     if wi.z > 0.0 && p_light > 0.0 {
-                        let w = power_heuristic(p_light, sample::mixture_pdf(&lobes, wi, wo));
+                        let w = power_heuristic(p_light, mixture_pdf(&lobes, wi, wo));
                         push(wi, l, wi.z * w / (p_light * spp));
                     }
-                    let (wi, p_bsdf) =
-                        sample::sample_mixture(&lobes, wo, [rng.uniform(), rng.uniform(), rng.uniform()]);
+                    let (wi, p_bsdf) = sample_mixture(&lobes, wo, [rng.uniform(), rng.uniform(), rng.uniform()]);
                     if p_bsdf > 0.0 {
                         let d = world(wi);
                         let w = power_heuristic(p_bsdf, env.pdf(d));
-                        push(wi, env.radiance(d), wi.z * w / (p_bsdf * spp));
+                        push(wi, env.radiance(d), weight_factor(wi, p_bsdf) * w / spp);
                     }
                 }
             }
@@ -268,7 +262,7 @@ fn shade(scene: &Scene, shader: &Shader, hit: &Hit, wo_world: DVec3, rng: &mut R
                 (0..3).for_each(|c| radiance[c] += f[c] * s[c]);
             }
         }
-        Shader::Oat(prepared) => return oat::shade(prepared, &scene.lights, hit, wo_world),
+        Shader::Surface(surface) => return surface.shade(&scene.lights, hit, wo_world),
         Shader::Reference(channels) => {
             let mut targets = Vec::new();
             for (l, e) in incident(&scene.lights, hit.p) {
@@ -296,11 +290,15 @@ fn shade(scene: &Scene, shader: &Shader, hit: &Hit, wo_world: DVec3, rng: &mut R
 
 /// Renders image rows `first..first + out.len() / (shaders.len() · 3 W)` of every material: `out` holds, per shader,
 /// those rows of W pixels of RGB. Pixel streams are seeded by (seed, i, j) only, so every material sees the same
-/// light samples and the result does not depend on the thread count or the row range.
-pub fn render_rows(scene: &Scene, shaders: &[Shader], first: usize, out: &mut [f32]) {
+/// light samples and the result does not depend on the thread count or the row range. Interrupted when asked to stop
+/// (interrupt.rs), checked row by row.
+pub fn render_rows(scene: &Scene, shaders: &[Shader], first: usize, out: &mut [f32]) -> Result<()> {
     let w = scene.width;
     let rows = out.len() / (shaders.len().max(1) * 3 * w);
     out.par_chunks_mut(3 * w).enumerate().for_each(|(r, line)| {
+        if crate::interrupt::requested() {
+            return;
+        }
         let (k, j) = (r / rows, first + r % rows);
         for (i, px) in line.chunks_exact_mut(3).enumerate() {
             let (o, d) = scene.ray(i, j);
@@ -314,4 +312,5 @@ pub fn render_rows(scene: &Scene, shaders: &[Shader], first: usize, out: &mut [f
             px.iter_mut().zip(rgb).for_each(|(p, v)| *p = v as f32);
         }
     });
+    crate::interrupt::check()
 }

@@ -16,12 +16,13 @@
 //! microfacets gives (each column rescaled to it: the quadrature misses narrow lobes). The layers combine by the
 //! adding equations, order by order.
 
-use crate::optics::distribution::{Distribution, G2Form, Microfacet};
+use crate::error::Result;
+use crate::optics::distribution::{G2Form, Microfacet};
 use crate::optics::{fresnel, reflect, refract};
 use crate::quadrature::gauss_legendre;
-use crate::reference::{boundary_f, is_delta, Base, ChannelStack};
 use crate::sampling::henyey_greenstein;
 use crate::stack::Stack;
+use crate::transport::{Base, ChannelStack, Microsurface};
 use glam::DVec3;
 use rayon::prelude::*;
 use std::f64::consts::PI;
@@ -309,7 +310,7 @@ struct Operators {
 fn interface(cells: &Cells, s: &ChannelStack, b: usize) -> Operators {
     let it = &s.interfaces[b];
     let eta = it.eta;
-    if is_delta(s, b) {
+    if s.is_delta(b) {
         return Operators {
             r_top: every_order(diagonal(|j| cells.average(j, |mu| fresnel::dielectric(mu, eta)))),
             r_bottom: every_order(diagonal(|j| cells.average(j, |mu| fresnel::dielectric(mu, 1.0 / eta)))),
@@ -317,7 +318,7 @@ fn interface(cells: &Cells, s: &ChannelStack, b: usize) -> Operators {
             t_up: every_order(smooth_refraction(cells, 1.0 / eta)),
         };
     }
-    let f = |w_light: DVec3, w_view: DVec3| boundary_f(s, b, w_light, w_view);
+    let f = |w_light: DVec3, w_view: DVec3| s.boundary_f(b, w_light, w_view);
     let energy = |j: usize, eta: f64| {
         let rt: Vec<(f64, f64)> = cells
             .points(j)
@@ -352,7 +353,7 @@ fn base(cells: &Cells, s: &ChannelStack) -> Op {
             every_order(diagonal(|j| cells.average(j, |mu| fresnel::conductor(mu, *eta, *k))))
         }
         Base::Conductor { mf, eta, k } => {
-            let mut op = project(cells, 1.0, 1.0, &|wl, wv| boundary_f(s, b, wl, wv));
+            let mut op = project(cells, 1.0, 1.0, &|wl, wv| s.boundary_f(b, wl, wv));
             let energy: Vec<f64> = (0..N_THETA)
                 .into_par_iter()
                 .map(|j| cell_energy(cells, j, |w| conductor_energy(mf, s.g2, *eta, *k, w)))
@@ -360,7 +361,7 @@ fn base(cells: &Cells, s: &ChannelStack) -> Op {
             rescale_columns(cells, &mut op, |j| energy[j]);
             op
         }
-        Base::Diffuse { .. } => project(cells, 1.0, 1.0, &|wl, wv| boundary_f(s, b, wl, wv)),
+        Base::Diffuse { .. } => project(cells, 1.0, 1.0, &|wl, wv| s.boundary_f(b, wl, wv)),
     }
 }
 
@@ -399,6 +400,9 @@ fn slab(cells: &Cells, s: &ChannelStack, i: usize) -> Option<Operators> {
         .map(|(mut r, f)| {
             let mut t = add(&direct, &f);
             for _ in 0..doublings {
+                if crate::interrupt::requested() {
+                    break; // the solve returns Interrupted at its next check, and this operator is dropped
+                }
                 // Two copies of the layer: R' = R + T (I − R R)⁻¹ R T, T' = T (I − R R)⁻¹ T.
                 let x = solve_one_minus(&mul(&r, &r), &t);
                 r = add(&r, &mul(&mul(&t, &r), &x));
@@ -428,20 +432,22 @@ fn over(a: &Operators, r: Op, with_top: bool) -> Op {
 }
 
 /// The reflection of channel stack `s` less its top boundary's own reflection (which the model evaluates exactly),
-/// order by order.
-fn reflection_below_top(cells: &Cells, s: &ChannelStack) -> Op {
-    let mut r = base(cells, s);
+/// order by order; Interrupted when asked to stop (interrupt.rs), checked layer by layer.
+fn reflection_below_top(cells: &Cells, s: &ChannelStack) -> Result<Op> {
     let n = s.interfaces.len();
     if n == 0 {
-        return every_order(zeros());
+        return Ok(every_order(zeros()));
     }
+    let mut r = base(cells, s);
     for i in (0..n).rev() {
+        crate::interrupt::check()?;
         if let Some(sl) = slab(cells, s, i) {
+            crate::interrupt::check()?;
             r = over(&sl, r, true);
         }
         r = over(&interface(cells, s, i), r, i > 0);
     }
-    r
+    Ok(r)
 }
 
 /// The cells a table node (x = k / N_THETA, k = 0 … N_THETA) interpolates, with their weights: the two cells it
@@ -459,8 +465,8 @@ fn node_cells(k: usize) -> Vec<(usize, f64)> {
 /// the travel directions (φ = π − the azimuth between wi and wo), per channel: index (pair(i, o) · N_PHI + p) ·
 /// channels + c. A node's Fourier coefficients are those of the cells beside it, averaged; at θ = 0 only order 0
 /// remains (f does not depend on the azimuth there). Reciprocal (the average of (i, o) and (o, i), stored once);
-/// the ringing of the truncated series below zero is clipped.
-pub fn tabulate(stack: &Stack, dist: Distribution, g2: G2Form) -> Vec<f32> {
+/// the ringing of the truncated series below zero is clipped. Interrupted when asked to stop (interrupt.rs).
+pub fn tabulate(stack: &Stack, surface: Microsurface) -> Result<Vec<f32>> {
     let cells = Cells::new();
     let (n, ch) = (N_THETA, stack.channels);
     let mut table = vec![0f32; PAIRS * N_PHI * ch];
@@ -481,7 +487,7 @@ pub fn tabulate(stack: &Stack, dist: Distribution, g2: G2Form) -> Vec<f32> {
             continue;
         }
         done.push((key, c));
-        let r = reflection_below_top(&cells, &ChannelStack::new(stack, c, dist, g2));
+        let r = reflection_below_top(&cells, &ChannelStack::new(stack, c, surface))?;
         // ā_m(o, j) = S_m[o][j] / (π (1 + δ_m0) w_j), symmetrized.
         let a = |m: usize, o: usize, j: usize| r[m][o * n + j] / (PI * if m == 0 { 2.0 } else { 1.0 } * cells.w[j]);
         let coefficient = |m: usize, o: usize, j: usize| 0.5 * (a(m, o, j) + a(m, j, o));
@@ -501,7 +507,7 @@ pub fn tabulate(stack: &Stack, dist: Distribution, g2: G2Form) -> Vec<f32> {
             }
         }
     }
-    table
+    Ok(table)
 }
 
 /// What channel c of `stack` is made of (two channels with equal keys have equal tables).
@@ -516,4 +522,112 @@ fn channel_key(stack: &Stack, c: usize) -> Vec<f64> {
             Layer::Diffuse { albedo, .. } => vec![albedo[c]],
         })
         .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::stack::Layer;
+
+    /// The energy leaving every column of an operator (order 0), light from each incident cell.
+    fn energies(cells: &Cells, op: &Op) -> Vec<f64> {
+        (0..N_THETA).map(|j| column_energy(cells, &op[0], j)).collect()
+    }
+
+    fn channel(layers: Vec<Layer>) -> ChannelStack {
+        ChannelStack::new(&Stack::new(layers, 1.0).unwrap(), 0, Microsurface::default())
+    }
+
+    fn slab_layer(sigma_a: f64, sigma_s: f64, thickness: f64, g: f64) -> Layer {
+        let (ior, alpha, angle) = (vec![1.0], (0.0, 0.0), 0.0);
+        Layer::Dielectric { ior, alpha, angle, thickness, sigma_a: vec![sigma_a], sigma_s: vec![sigma_s], g }
+    }
+
+    #[test]
+    fn solving_one_minus_a_sums_its_neumann_series() {
+        // (I − A)⁻¹ B = Σ Aᵏ B for A of norm below one: a pseudo-random A with row sums of 0.6.
+        let n = N_THETA;
+        let a: Mat = (0..n * n).map(|k| 1.2 / n as f64 * ((k * 7919 % 101) as f64 / 100.0)).collect();
+        let b: Mat = (0..n * n).map(|k| ((k * 104_729 % 97) as f64 / 96.0) - 0.5).collect();
+        let (mut sum, mut term) = (b.clone(), b.clone());
+        for _ in 0..200 {
+            term = mul(&a, &term);
+            sum = add(&sum, &term);
+        }
+        let x = solve_one_minus(&a, &b);
+        let worst = x.iter().zip(&sum).map(|(x, s)| (x - s).abs()).fold(0.0, f64::max);
+        assert!(worst < 1e-12, "{worst}");
+    }
+
+    #[test]
+    fn a_lambertian_base_projects_to_its_constant_order_zero() {
+        // f = ρ/π: the cell-averaged Fourier coefficient ā₀ is ρ/π everywhere, every other order 0.
+        let s = channel(vec![Layer::Diffuse { albedo: vec![0.7], roughness: 0.0 }]);
+        let cells = Cells::new();
+        let op = base(&cells, &s);
+        for (m, order) in op.iter().enumerate() {
+            for o in 0..N_THETA {
+                for j in 0..N_THETA {
+                    let a = order[o * N_THETA + j] / (PI * if m == 0 { 2.0 } else { 1.0 } * cells.w[j]);
+                    let exact = if m == 0 { 0.7 / PI } else { 0.0 };
+                    assert!((a - exact).abs() < 1e-13, "order {m}, cells ({o}, {j}): {a}");
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn a_lossless_scattering_slab_conserves_energy() {
+        // ω = 1: every column of R + T carries all the light it receives, whatever τ and g, up to the grid's
+        // quadrature of the phase function, which the doublings carry along: measured worst 1.9e-4 (τ = 0.1),
+        // 2.5e-4 (τ = 1), 3.1e-4 (τ = 4).
+        let cells = Cells::new();
+        for (tau, g) in [(0.1, 0.0), (1.0, -0.3), (4.0, 0.6)] {
+            let s = channel(vec![slab_layer(0.0, tau, 1.0, g), Layer::Diffuse { albedo: vec![0.0], roughness: 0.0 }]);
+            let ops = slab(&cells, &s, 0).unwrap();
+            for (r, t) in energies(&cells, &ops.r_top).iter().zip(energies(&cells, &ops.t_down)) {
+                assert!((r + t - 1.0).abs() < 5e-4, "τ = {tau}, g = {g}: R + T = {}", r + t);
+            }
+        }
+    }
+
+    #[test]
+    fn an_absorbing_slab_transmits_beer_lambert() {
+        // σs = 0: no reflection, and each cell transmits its average of e^{−τ/μ} straight down.
+        let cells = Cells::new();
+        let s = channel(vec![slab_layer(0.8, 0.0, 0.5, 0.0), Layer::Diffuse { albedo: vec![0.0], roughness: 0.0 }]);
+        let ops = slab(&cells, &s, 0).unwrap();
+        let t = energies(&cells, &ops.t_down);
+        for (j, t) in t.iter().enumerate() {
+            let exact = cells.average(j, |mu| (-0.4 / mu).exp());
+            assert!((t - exact).abs() < 1e-14 && energies(&cells, &ops.r_top)[j] == 0.0, "cell {j}: {t} vs {exact}");
+        }
+    }
+
+    #[test]
+    fn a_smooth_interface_reflects_and_transmits_all_it_receives() {
+        // From above (η = 1.5) R + T = 1 per cell, up to the transmitted cell's Fresnel taken at its midpoint against
+        // the reflected one's Gauss average: measured 3.7e-5 at most up to 60°, 5.9e-3 in the last cell (89.3°),
+        // where F is steepest; R + T is above 1 everywhere (the midpoint underestimates the convex F).
+        let cells = Cells::new();
+        let s = channel(vec![
+            Layer::Dielectric {
+                ior: vec![1.5],
+                alpha: (0.0, 0.0),
+                angle: 0.0,
+                thickness: 0.0,
+                sigma_a: vec![0.0],
+                sigma_s: vec![0.0],
+                g: 0.0,
+            },
+            Layer::Diffuse { albedo: vec![0.0], roughness: 0.0 },
+        ]);
+        let ops = interface(&cells, &s, 0);
+        let (r, t) = (energies(&cells, &ops.r_top), energies(&cells, &ops.t_down));
+        for j in 0..N_THETA {
+            let excess = r[j] + t[j] - 1.0;
+            let bound = if cells.edges[j + 1] <= 0.75 { 5e-5 } else { 8e-3 }; // sin²θ ≤ 3/4: θ ≤ 60°
+            assert!((0.0..bound).contains(&excess), "cell {j}: R + T − 1 = {excess}");
+        }
+    }
 }

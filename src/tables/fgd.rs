@@ -93,7 +93,7 @@ pub fn fgd() -> &'static Fgd {
     static TABLE: OnceLock<Fgd> = OnceLock::new();
     TABLE.get_or_init(|| {
         let name = format!("fgd-{N_MU}x{N_ALPHA}x{N_ETA}x{N_KAPPA}.f32");
-        let data = super::cached(&name, N_MU * N_ALPHA * N_ETA * N_KAPPA, || Fgd::generate().grid.data().to_vec());
+        let data = super::shared(&name, N_MU * N_ALPHA * N_ETA * N_KAPPA, || Fgd::generate().grid.data().to_vec());
         Fgd { grid: Grid::new([N_MU, N_ALPHA, N_ETA, N_KAPPA], data) }
     })
 }

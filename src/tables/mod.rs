@@ -10,6 +10,7 @@ pub mod steinberg;
 
 pub use fgd::fgd;
 
+use crate::error::Result;
 use crate::optics::distribution::Microfacet;
 use glam::DVec3;
 use std::path::PathBuf;
@@ -22,22 +23,17 @@ pub fn visible_normals(mf: &Microfacet, wi: DVec3, n: usize) -> Vec<DVec3> {
         .collect()
 }
 
-/// Where this build's tables are cached: $LAMINA_CACHE/tables/<source hash>, else ~/.cache/lamina/tables/<source hash>.
+/// Where this build's tables are cached: <cache root>/tables/<source hash> (cache.rs).
 fn cache_dir() -> Option<PathBuf> {
-    let base = std::env::var_os("LAMINA_CACHE")
-        .map(PathBuf::from)
-        .or_else(|| std::env::var_os("HOME").map(|h| PathBuf::from(h).join(".cache").join("lamina")))?;
-    Some(base.join("tables").join(crate::SOURCE_HASH))
+    Some(crate::cache::root()?.join("tables").join(crate::SOURCE_HASH))
 }
 
-/// A table of `len` f32 values: read from the cache file `name` when present and of the right size, else
-/// generated and written there (atomically; a failed write only costs the next process a regeneration).
-pub fn cached(name: &str, len: usize, generate: impl FnOnce() -> Vec<f32> + Send) -> Vec<f32> {
+/// A table of `len` f32 values: read from the cache entry `name` when it is there and intact (cache.rs), else
+/// generated and cached. An interrupted generation (interrupt.rs) returns its error and caches nothing.
+pub fn cached(name: &str, len: usize, generate: impl FnOnce() -> Result<Vec<f32>> + Send) -> Result<Vec<f32>> {
     let path = cache_dir().map(|d| d.join(name));
-    if let Some(bytes) = path.as_ref().and_then(|p| std::fs::read(p).ok()) {
-        if bytes.len() == 4 * len {
-            return bytes.chunks_exact(4).map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]])).collect();
-        }
+    if let Some(bytes) = path.as_deref().and_then(crate::cache::read).filter(|b| b.len() == 4 * len) {
+        return Ok(bytes.chunks_exact(4).map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]])).collect());
     }
     // Generated on a thread and a pool of their own, the caller waiting in a plain join. The caller holds the table's
     // OnceLock meanwhile: a rayon worker waiting for parallel work steals other jobs, and one that looks this table up
@@ -48,16 +44,22 @@ pub fn cached(name: &str, len: usize, generate: impl FnOnce() -> Vec<f32> + Send
             Err(_) => generate(),
         });
         worker.join().unwrap_or_else(|panic| std::panic::resume_unwind(panic))
-    });
+    })?;
     assert_eq!(data.len(), len, "table {name}");
     if let Some(path) = path {
         let bytes: Vec<u8> = data.iter().flat_map(|v| v.to_le_bytes()).collect();
-        let tmp = path.with_extension(format!("tmp{}", std::process::id()));
-        let _ = std::fs::create_dir_all(path.parent().unwrap())
-            .and_then(|_| std::fs::write(&tmp, bytes))
-            .and_then(|_| std::fs::rename(&tmp, &path));
+        crate::cache::write(&path, &bytes);
     }
-    data
+    Ok(data)
+}
+
+/// `cached` for a table whose generation cannot fail (it does not look for interrupts): the tables every stack
+/// shares (FGD, Steinberg's).
+pub fn shared(name: &str, len: usize, generate: impl FnOnce() -> Vec<f32> + Send) -> Vec<f32> {
+    match cached(name, len, || Ok(generate())) {
+        Ok(data) => data,
+        Err(_) => unreachable!("the generator returns Ok"),
+    }
 }
 
 /// Linear interpolation weights of `x` on `n` uniform nodes over [0, 1], clamped: (lower node, fraction). The node

@@ -19,7 +19,7 @@
 //! tabulated μ column by weighted Levenberg–Marquardt (weights 10 at μ = 0 and 100 at μ = 1 for t, 10 at both ends
 //! for s), bilinear in (α, log η) between nodes. The fit error against the table is reported in docs/validation.md.
 
-use super::{cached, fit, node, visible_normals, Grid};
+use super::{fit, node, shared, visible_normals, Grid};
 use crate::optics::distribution::{Distribution, Microfacet};
 use crate::optics::fresnel;
 use crate::optics::refract;
@@ -251,8 +251,8 @@ pub fn steinberg() -> &'static Steinberg {
     TABLE.get_or_init(|| {
         let dims = format!("{N_MU}x{N_ALPHA}x{N_ETA}");
         let table =
-            cached(&format!("steinberg-{dims}.f32"), N_MU * N_ALPHA * N_ETA * STRIDE, Steinberg::generate_table);
-        let fits = cached(&format!("steinberg-fit-{dims}.f32"), N_ALPHA * N_ETA * (T_PARAMS + S_PARAMS), || {
+            shared(&format!("steinberg-{dims}.f32"), N_MU * N_ALPHA * N_ETA * STRIDE, Steinberg::generate_table);
+        let fits = shared(&format!("steinberg-fit-{dims}.f32"), N_ALPHA * N_ETA * (T_PARAMS + S_PARAMS), || {
             Steinberg::generate_fits(&table)
         });
         Steinberg { table: Grid::new([N_MU, N_ALPHA, N_ETA], table), fits }

@@ -121,7 +121,7 @@ fn env_pdf(d: vec3<f32>) -> f32 {
     return pdf1_density(0u, ep.height, t.y) * pdf1_density(row_offset(t.y), ep.width, t.x) / (2.0 * PI * PI * sin_theta);
 }
 
-// render::power_heuristic: β = 2 (Veach 1997 eq. 9.13).
+// sampling::power_heuristic: β = 2 (Veach 1997 eq. 9.13).
 fn power_heuristic(pdf: f32, other: f32) -> f32 {
     if pdf <= 0.0 {
         return 0.0;
@@ -168,7 +168,7 @@ fn shade_env(hit: Hit, d: vec3<f32>, base: u32, px: u32) -> vec3<f32> {
             if sampled.w > 0.0 {
                 let dir = wi.x * hit.t + wi.y * b + wi.z * hit.n;
                 let w = power_heuristic(sampled.w, env_pdf(dir));
-                scale = env_radiance(dir) * (wi.z * w / (sampled.w * f32(spp)));
+                scale = env_radiance(dir) * (weight_factor(wi, sampled.w) * w / f32(spp));
             }
         }
         if wi.z > 0.0 && any(scale != vec3<f32>(0.0)) {

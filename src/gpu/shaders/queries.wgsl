@@ -18,7 +18,7 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     }
 }
 
-// Stack.sample on the GPU (sample::sample with the model's f): per element (wo, u) the row (wi, weight = f cos θi /
+// Stack.sample on the GPU (mixture::sample with the model's f): per element (wo, u) the row (wi, weight = f cos θi /
 // pdf per channel, pdf); wi = +z, weight 0 and pdf 0 where nothing is sampled.
 @compute @workgroup_size(64)
 fn sample_main(@builtin(global_invocation_id) gid: vec3<u32>) {
@@ -38,7 +38,7 @@ fn sample_main(@builtin(global_invocation_id) gid: vec3<u32>) {
         eval_pair(s.xyz, wo, base + 3u);
     }
     for (var ch = 0u; ch < params.channels; ch++) {
-        out[base + 3u + ch] = select(0.0, out[base + 3u + ch] * s.z / s.w, s.w > 0.0);
+        out[base + 3u + ch] = select(0.0, out[base + 3u + ch] * weight_factor(s.xyz, s.w), s.w > 0.0);
     }
     out[base] = s.x;
     out[base + 1u] = s.y;
@@ -46,7 +46,7 @@ fn sample_main(@builtin(global_invocation_id) gid: vec3<u32>) {
     out[base + 3u + params.channels] = s.w;
 }
 
-// Stack.pdf on the GPU (sample::pdf): the mixture's density of wi for wo per element; 0 for wo below the horizon.
+// Stack.pdf on the GPU (mixture::pdf): the mixture's density of wi for wo per element; 0 for wo below the horizon.
 @compute @workgroup_size(64)
 fn pdf_main(@builtin(global_invocation_id) gid: vec3<u32>) {
     params = stack_params[0];

@@ -1,12 +1,17 @@
-// Importance sampling on the GPU (src/models/sample.rs): a one-sample mixture of the lobes a model proposes for the
+// Importance sampling on the GPU (src/models/common/mixture.rs): a one-sample mixture of the lobes a model proposes for the
 // viewing direction, reflection lobes through their visible normals and diffuse terms by the cosine. Each model's
 // shader builds the mixture (its `proposals(wo)` fills `lobes`); the renderer samples it. Composed after optics.wgsl.
 
 const MAX_LOBES: u32 = 16u;
 const COSINE: u32 = 0u;
 const REFLECTION: u32 = 1u;
-// sample::DEFENSIVE: the cosine share of a layered model's mixture.
+// mixture::DEFENSIVE: the cosine share of a layered model's mixture.
 const DEFENSIVE: f32 = 0.05;
+
+// mixture::weight_factor: what turns f at a sampled wi into the weight f cos θi / pdf; 0 for a lost sample.
+fn weight_factor(wi: vec3<f32>, pdf: f32) -> f32 {
+    return select(0.0, wi.z / pdf, pdf > 0.0);
+}
 
 struct Lobe {
     kind: u32,
@@ -37,7 +42,7 @@ fn add_term(slot: u32, kind: u32, weight: f32, mf: Microfacet) {
     lobes[slot].weight += weight;
 }
 
-// Keeps the terms with energy, in order (sample::defensive_mixture's filter).
+// Keeps the terms with energy, in order (mixture::defensive_mixture's filter).
 fn keep_terms_with_energy() {
     var kept = 0u;
     for (var k = 0u; k < lobe_count; k++) {
@@ -61,7 +66,7 @@ fn total_weight() -> f32 {
     return total;
 }
 
-// sample::defensive_mixture: the terms with energy, then the DEFENSIVE cosine share (none when nothing has energy).
+// mixture::defensive_mixture: the terms with energy, then the DEFENSIVE cosine share (none when nothing has energy).
 fn add_defensive_share() {
     keep_terms_with_energy();
     let total = total_weight();
@@ -70,7 +75,7 @@ fn add_defensive_share() {
     }
 }
 
-// sample::lobe_pdf: D_wo(h) / (4 wo·h) for a reflection lobe, cos θi / π for the cosine.
+// mixture::lobe_pdf: D_wo(h) / (4 wo·h) for a reflection lobe, cos θi / π for the cosine.
 fn lobe_pdf(lobe: Lobe, wi: vec3<f32>, wo: vec3<f32>) -> f32 {
     if lobe.kind == COSINE {
         return max(wi.z, 0.0) * FRAC_1_PI;
@@ -83,7 +88,7 @@ fn lobe_pdf(lobe: Lobe, wi: vec3<f32>, wo: vec3<f32>) -> f32 {
     return 0.0;
 }
 
-// sample::mixture_pdf: the mixture's pdf of wi for wo; 0 below the horizon.
+// mixture::mixture_pdf: the mixture's pdf of wi for wo; 0 below the horizon.
 fn mixture_pdf(wi: vec3<f32>, wo: vec3<f32>) -> f32 {
     let total = total_weight();
     if wi.z <= 0.0 || wo.z <= 0.0 || total <= 0.0 {
@@ -96,7 +101,7 @@ fn mixture_pdf(wi: vec3<f32>, wo: vec3<f32>) -> f32 {
     return p;
 }
 
-// sample::sample_mixture: (wi, pdf) from three uniform numbers; pdf 0 when nothing can be sampled or wi is lost
+// mixture::sample_mixture: (wi, pdf) from three uniform numbers; pdf 0 when nothing can be sampled or wi is lost
 // below the horizon.
 fn sample_mixture(wo: vec3<f32>, u: vec3<f32>) -> vec4<f32> {
     let total = total_weight();

@@ -6,36 +6,31 @@ use super::Prepared;
 use crate::optics::{fresnel, jacobian};
 use crate::tables;
 
-/// Where Belcour's paper and reference code disagree, each choice is an option, measured against the reference
-/// evaluator in docs/validation.md. Defaults: the reference code.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-pub struct Variant {
-    /// Transmission roughness scale s with the real cosines (paper) instead of cosines frozen to 1 (code).
-    pub real_cosines: bool,
-    /// J21 (paper) instead of j12 (code) in the transmitted and back-reflected variance terms.
-    pub jacobian_j21: bool,
-    /// Energies from the exact Fresnel at the mean cosine instead of the FGD table.
-    pub fresnel_energy: bool,
-    /// The reference code's TIR step before each interface below the first.
-    pub tir: Tir,
-    /// lamina's correction: a rough dielectric transmits T (tables::steinberg, the single-scattering microfacet
-    /// transmission with its masking) instead of 1 − R: R + T < 1, as for the microsurface itself.
-    pub microfacet_transmission: bool,
-}
-
 /// Belcour's optional TIR step (reference code, "decoupling approximation"): before interface i > 0, a factor T of
 /// the energy Ti0 that goes back up through interface i − 1 (cosine cti below it, roughness of the lobe, relative
 /// IOR η < 1 going up) is moved into Ri0: Ri0 += (1 − T) Ti0, Ti0 ← T Ti0.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Tir {
     /// No TIR step.
-    #[default]
     Off,
     /// T = the rough interface's mean transmittance E[1 − F] (what the reference code's table holds): the Fresnel
     /// factor already in Ti0 is applied a second time.
     Transmittance,
     /// T = 1 − the fraction of visible normals that totally reflect: only the TIR itself.
     Fraction,
+}
+
+impl Tir {
+    /// The names `from_str` reads, in the order of `ALL`.
+    pub const NAMES: [&'static str; 3] = ["off", "transmittance", "fraction"];
+    pub const ALL: [Tir; 3] = [Tir::Off, Tir::Transmittance, Tir::Fraction];
+}
+
+impl std::str::FromStr for Tir {
+    type Err = crate::error::Error;
+    fn from_str(s: &str) -> crate::error::Result<Self> {
+        crate::error::parse_choice("tir", s, &Self::NAMES, &Self::ALL)
+    }
 }
 
 pub(super) enum Step {
@@ -196,7 +191,7 @@ impl Prepared {
                     // reverse going up). At the lobe mean (h = n) the exact Jacobians are these multiples of I, so
                     // this is the exact-Jacobian transport at the mean and the paper's |η cos θt − cos θi| /
                     // (2η cos θt); the reference code freezes the cosines to 1 (normal incidence).
-                    let (ci, ct) = if self.variant.real_cosines { (cti, ctt) } else { (1.0, 1.0) };
+                    let (ci, ct) = if self.opts.real_cosines { (cti, ctt) } else { (1.0, 1.0) };
                     let scale = |cos_i: f64, cos_t: f64, eta: f64| {
                         let t = jacobian::refraction_scale(cos_i, eta).unwrap_or(0.0);
                         t.abs() / jacobian::reflection_scale(cos_t)
@@ -209,9 +204,9 @@ impl Prepared {
                     // FGD at the roughness, along the viewing azimuth, of the incoming lobe convolved with the
                     // interface.
                     let temp_alpha = alpha_from_variance((s.s_t0i + s_r12).along(cos_phi, sin_phi));
-                    if let Some(up) = eta_above.filter(|_| self.variant.tir != Tir::Off) {
+                    if let Some(up) = eta_above.filter(|_| self.opts.tir != Tir::Off) {
                         let table = tables::steinberg::steinberg();
-                        let t = match self.variant.tir {
+                        let t = match self.opts.tir {
                             Tir::Transmittance => table.tabulated(cti, temp_alpha, 1.0 / up).0,
                             _ => 1.0 - table.tir_fraction(cti, temp_alpha, 1.0 / up),
                         };
@@ -222,7 +217,7 @@ impl Prepared {
                     }
                     let r12: Vec<f64> = (0..c)
                         .map(|k| {
-                            if temp_alpha == 0.0 || self.variant.fresnel_energy {
+                            if temp_alpha == 0.0 || self.opts.fresnel_energy {
                                 fresnel::conductor(cti, eta[k], kappa[k]) // FGD at α = 0 is the Fresnel term itself
                             } else {
                                 fgd.lookup(cti, temp_alpha, eta[k], kappa[k])
@@ -231,7 +226,7 @@ impl Prepared {
                         .collect();
                     let t12: Vec<f64> = if !transmissive {
                         vec![0.0; c]
-                    } else if self.variant.microfacet_transmission && temp_alpha > 0.0 {
+                    } else if self.opts.microfacet_transmission && temp_alpha > 0.0 {
                         let table = tables::steinberg::steinberg();
                         eta.iter().map(|e| table.transmitted(cti, temp_alpha, *e)).collect()
                     } else {
@@ -240,7 +235,7 @@ impl Prepared {
                     let (r21, t21) =
                         if transmissive { (r12.clone(), t12.clone()) } else { (vec![0.0; c], vec![0.0; c]) };
                     let st = StepStats { r12, t12, r21, t21, s_r12, s_t12, s_r21: s_r12, s_t21, j12, j21 };
-                    lobes.push(s.add(&st, self.variant.jacobian_j21));
+                    lobes.push(s.add(&st, self.opts.jacobian_j21));
                     if !transmissive {
                         s.t0i.fill(0.0);
                         s.ti0.fill(0.0);
@@ -275,7 +270,7 @@ impl Prepared {
                         j12: 1.0,
                         j21: 1.0,
                     };
-                    s.add(&st, self.variant.jacobian_j21);
+                    s.add(&st, self.opts.jacobian_j21);
                 }
             }
         }

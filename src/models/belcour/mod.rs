@@ -28,9 +28,9 @@
 //! | `jacobian`  | string | `j12`               | `j12` (code) or `j21` (paper) in the transmitted variance terms      |
 //! | `energy`    | string | `fgd`               | energies from FGD or the exact `fresnel` at the mean cosine          |
 //! | `tir`       | string | `off`               | the code's TIR step: `off`, `transmittance` or `fraction`            |
-//! | `tabulated` | bool   | `true`              | interpolate the adding-doubling from a table built once per stack    |
+//! | `interpolated` | bool | `true`             | interpolate the adding-doubling from a table built once per stack    |
 //! | `microfacet_transmission` | bool | `false` | lamina's correction: T of a rough interface from lamina's table, not 1 − R |
-//! | `transport_fit` | bool | `false`           | lamina's correction: f ← s f + a fitted to the stack's adding-doubling (transport_fit.rs) |
+//! | `transport_fit` | bool | `false`           | lamina's correction: f ← s f + a fitted to the stack's adding-doubling (corrections/transport_fit.rs) |
 //! | `variant`   | string | `published`         | `improved`: lamina's corrections (`transport_fit`)                   |
 //!
 //! Layout: `cov.rs` (covariances, roughness maps), `adding.rs` (the adding-doubling), `table.rs` (its table and
@@ -41,11 +41,12 @@ mod adding;
 mod cov;
 mod table;
 
-pub use adding::{Tir, Variant};
+pub use adding::Tir;
 pub use cov::{alpha_from_variance, hg_variance, variance_from_alpha, Cov, Lobe};
 
-use super::options::{choice, flag, variant, G2, MICROFACET_TRANSMISSION, TRANSPORT_FIT};
-use super::{InputSpec, Inputs, Model, ModelInfo, OptionSpec, Options, Properties, Proposal};
+use super::common::options::{choice, flag, variant, G2, MICROFACET_TRANSMISSION, TRANSPORT_FIT};
+use super::corrections::transport_fit;
+use super::{Args, InputSpec, Inputs, Model, ModelInfo, OptionSpec, Properties, Proposal};
 use crate::bsdf;
 use crate::error::{value_error, Result};
 use crate::optics::distribution::{Distribution, G2Form, Microfacet};
@@ -64,25 +65,72 @@ pub const INFO: ModelInfo = ModelInfo {
         choice("cosines", &["frozen", "real"], "frozen", "transmission scale with cosines frozen at normal incidence (code) or the real ones (paper: exact Jacobians at the lobe mean)"),
         choice("jacobian", &["j12", "j21"], "j12", "Jacobian in the transmitted and back-reflected variance terms: j12 (code) or j21 (paper)"),
         choice("energy", &["fgd", "fresnel"], "fgd", "lobe energies from the FGD table or the exact Fresnel at the mean cosine"),
-        choice("tir", &["off", "transmittance", "fraction"], "off", "the reference code's TIR step: off, its table (repeats the Fresnel factor) or the totally reflected fraction"),
-        flag("tabulated", true, "interpolate the adding-doubling from a table over the viewing direction, built once per stack"),
+        choice("tir", &Tir::NAMES, "off", "the reference code's TIR step: off, its table (repeats the Fresnel factor) or the totally reflected fraction"),
+        flag("interpolated", true, "interpolate the adding-doubling from a table over the viewing direction, built once per stack; False: run it per evaluation"),
         MICROFACET_TRANSMISSION,
         TRANSPORT_FIT,
-        variant("published: Belcour 2018; improved: with lamina's correction transport_fit"),
+        variant(&["transport_fit"], "published: Belcour 2018; improved: with lamina's correction transport_fit"),
     ] as &[OptionSpec],
     inputs: &[] as &[InputSpec],
     properties: Properties { reciprocal: false, energy_conserving: false, anisotropic: true, spectral: true },
-    prepare: |stack, opts| Ok(Box::new(prepare(stack, opts)?)),
+    prepare: |stack, args| {
+        let opts = Options::parse(args)?;
+        transport_fit::apply(opts.transport_fit, Box::new(prepare(stack, &opts)?), stack)
+    },
 };
+
+/// Belcour's options (the table above). Where the paper and the reference code disagree, each choice is an option,
+/// measured against the reference in docs/validation.md; the defaults are the reference code's.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Options {
+    pub g2: G2Form,
+    /// Statistics at |wo·h| instead of cos θo (Belcour §6).
+    pub symmetric: bool,
+    /// Transmission roughness scale s with the real cosines (paper) instead of cosines frozen to 1 (code).
+    pub real_cosines: bool,
+    /// J21 (paper) instead of j12 (code) in the transmitted and back-reflected variance terms.
+    pub jacobian_j21: bool,
+    /// Energies from the exact Fresnel at the mean cosine instead of the FGD table.
+    pub fresnel_energy: bool,
+    /// The reference code's TIR step before each interface below the first.
+    pub tir: Tir,
+    /// Interpolate the adding-doubling from a table over the viewing direction (`table.rs`).
+    pub interpolated: bool,
+    /// lamina's correction: a rough dielectric transmits T (tables::steinberg, the single-scattering microfacet
+    /// transmission with its masking) instead of 1 − R: R + T < 1, as for the microsurface itself.
+    pub microfacet_transmission: bool,
+    pub transport_fit: bool,
+}
+
+impl Options {
+    pub fn parse(args: &Args) -> Result<Options> {
+        Ok(Options {
+            g2: args.choice("g2")?,
+            symmetric: args.flag("symmetric")?,
+            real_cosines: args.is("cosines", "real")?,
+            jacobian_j21: args.is("jacobian", "j21")?,
+            fresnel_energy: args.is("energy", "fresnel")?,
+            tir: args.choice("tir")?,
+            interpolated: args.flag("interpolated")?,
+            microfacet_transmission: args.flag("microfacet_transmission")?,
+            transport_fit: args.flag("transport_fit")?,
+        })
+    }
+}
+
+impl Default for Options {
+    /// The table's defaults.
+    fn default() -> Self {
+        Options::parse(&Args::defaults(INFO.options)).expect("the table's defaults parse")
+    }
+}
 
 pub struct Prepared {
     steps: Vec<Step>,
     anisotropic: bool,
     diffuse: Option<DiffuseBase>,
     table: Option<LobeTable>,
-    g2: G2Form,
-    symmetric: bool,
-    variant: Variant,
+    opts: Options,
     channels: usize,
 }
 
@@ -119,21 +167,12 @@ pub fn prepare(stack: &Stack, opts: &Options) -> Result<Prepared> {
         }
     }
     let anisotropic = steps.iter().any(|s| matches!(s, Step::Interface { alpha, .. } if alpha.0 != alpha.1));
-    let mut p = Prepared {
-        steps,
-        anisotropic,
-        diffuse: None,
-        table: None,
-        g2: opts.g2,
-        symmetric: opts.symmetric,
-        variant: Variant { microfacet_transmission: opts.microfacet_transmission, ..opts.belcour },
-        channels: stack.channels,
-    };
+    let mut p = Prepared { steps, anisotropic, diffuse: None, table: None, opts: *opts, channels: stack.channels };
     if let Some(mut d) = diffuse {
         d.r_up = p.hemispherical_reflectance_from_below(d.eta);
         p.diffuse = Some(d);
     }
-    if opts.belcour_table {
+    if opts.interpolated {
         p.table = Some(p.tabulate());
     }
     Ok(p)
@@ -141,7 +180,7 @@ pub fn prepare(stack: &Stack, opts: &Options) -> Result<Prepared> {
 
 impl Model for Prepared {
     fn eval_block(&self, wi: [&[f64]; 3], wo: [&[f64]; 3], _: &Inputs, out: &mut [f64]) {
-        super::simd_columns!(Prepared, self, wi, wo, out)
+        super::common::block::simd_columns!(Prepared, self, wi, wo, out)
     }
 
     fn proposals(&self, wo: DVec3) -> Vec<(f64, Proposal)> {
@@ -182,7 +221,7 @@ impl Model for Prepared {
     }
 }
 
-/// What the GPU evaluator (src/gpu, shaders/belcour.wgsl) needs of a tabulated stack: the table's shape and
+/// What the GPU evaluator (src/gpu, shaders/belcour.wgsl) needs of an interpolated stack: the table's shape and
 /// arrays, and the diffuse base as (albedo, R̄↑) per channel and η.
 pub struct GpuData<'a> {
     /// lobes, nodes, azimuths, width, channels.
@@ -196,7 +235,7 @@ pub struct GpuData<'a> {
 }
 
 impl Prepared {
-    /// The table and parameters for the GPU; None without a table (`tabulated=False` runs on the CPU only).
+    /// The table and parameters for the GPU; None without a table (`interpolated=False` runs on the CPU only).
     pub fn gpu_data(&self) -> Option<GpuData<'_>> {
         let t = self.table.as_ref()?;
         Some(GpuData {
@@ -204,8 +243,8 @@ impl Prepared {
             record: &t.record,
             t_down: &t.t_down,
             t_up: &t.t_up,
-            g2: self.g2,
-            symmetric: self.symmetric,
+            g2: self.opts.g2,
+            symmetric: self.opts.symmetric,
             diffuse: self
                 .diffuse
                 .as_ref()
@@ -227,7 +266,7 @@ impl Prepared {
         if self.table.is_some() {
             return self.eval_columns([&[wi.x], &[wi.y], &[wi.z]], [&[wo.x], &[wo.y], &[wo.z]], out);
         }
-        let cos_theta = if self.symmetric { symmetric_cosine(wi, wo) } else { wo.z };
+        let cos_theta = if self.opts.symmetric { symmetric_cosine(wi, wo) } else { wo.z };
         let (cos_phi, sin_phi) = azimuth(wo);
         let (lobes, view) = self.adding(cos_theta, cos_phi, sin_phi);
         for lobe in &lobes {
@@ -237,7 +276,7 @@ impl Prepared {
             // T↓ at θi and T↑ at θo (not at |wo·h|): symmetric under exchange, since T0i = Ti0 in this model.
             let (ci, si) = azimuth(wi);
             let light = self.adding(wi.z, ci, si).1;
-            let view = if self.symmetric { self.adding(wo.z, cos_phi, sin_phi).1 } else { view };
+            let view = if self.opts.symmetric { self.adding(wo.z, cos_phi, sin_phi).1 } else { view };
             self.add_diffuse(|ch| light.t0i[ch], |ch| view.ti0[ch], out);
         }
     }
@@ -246,7 +285,7 @@ impl Prepared {
     /// a Dirac delta, not part of f.
     fn add_lobe(&self, (ax, ay, angle): (f64, f64, f64), energy: &[f64], wi: DVec3, wo: DVec3, out: &mut [f64]) {
         let mf = Microfacet::new(Distribution::Ggx, ax, ay, angle);
-        let shape = bsdf::reflection_geometry(&mf, self.g2, wi, wo).map_or(0.0, |(geo, _)| geo);
+        let shape = bsdf::reflection_geometry(&mf, self.opts.g2, wi, wo).map_or(0.0, |(geo, _)| geo);
         for (o, e) in out.iter_mut().zip(energy) {
             *o += e * shape;
         }
@@ -298,7 +337,7 @@ mod tests {
             1.0,
         )
         .unwrap();
-        let p = prepare(&stack, &Options { belcour_table: false, ..Options::default() }).unwrap();
+        let p = prepare(&stack, &Options { interpolated: false, ..Options::default() }).unwrap();
         let f_int = crate::optics::fresnel::diffuse_reflectance(1.0 / 1.5);
         for (wi, wo) in [(DVec3::new(0.3, 0.1, 0.9), DVec3::new(-0.6, 0.2, 0.5)), (DVec3::new(0.9, 0.0, 0.2), DVec3::Z)]
         {

@@ -3,7 +3,7 @@
 use super::cov::Cov;
 use super::{symmetric_cosine, Prepared};
 use crate::bsdf;
-use crate::models::{eval_rows, BLOCK};
+use crate::models::common::block::{eval_rows, BLOCK};
 use crate::optics::distribution::{Distribution, G2Form, Microfacet};
 use crate::tables;
 use glam::DVec3;
@@ -149,7 +149,7 @@ impl Prepared {
         let mut cos_theta = [0.0; BLOCK];
         for r in 0..n {
             above[r] = iz[r] > 0.0 && oz[r] > 0.0;
-            cos_theta[r] = if self.symmetric && above[r] {
+            cos_theta[r] = if self.opts.symmetric && above[r] {
                 symmetric_cosine(DVec3::new(ix[r], iy[r], iz[r]), DVec3::new(ox[r], oy[r], oz[r]))
             } else {
                 oz[r]
@@ -179,7 +179,7 @@ impl Prepared {
                     (ax[r], ay[r], cos[r], sin[r]) = Cov { xx: ax[r], xy: ay[r], yy: cos[r] }.eigen_frame();
                 }
                 let frame = Some([&cos[..n], &sin[..n]]);
-                ggx_shapes(self.g2, [&ax[..n], &ay[..n]], frame, above, wi, wo, &mut shape);
+                ggx_shapes(self.opts.g2, [&ax[..n], &ay[..n]], frame, above, wi, wo, &mut shape);
                 for (r, o) in out.chunks_exact_mut(c).enumerate() {
                     for (o, e) in o.iter_mut().zip(&lobe(r)[3..]) {
                         *o += e * shape[r];
@@ -194,7 +194,7 @@ impl Prepared {
                 for r in 0..n {
                     ax[r] = weight[0][r] * t.record[at(0, r)] + weight[1][r] * t.record[at(1, r)];
                 }
-                ggx_shapes(self.g2, [&ax[..n], &ax[..n]], None, above, wi, wo, &mut shape);
+                ggx_shapes(self.opts.g2, [&ax[..n], &ax[..n]], None, above, wi, wo, &mut shape);
                 for (r, o) in out.chunks_exact_mut(c).enumerate() {
                     let (a, b) = (at(0, r) + 1, at(1, r) + 1);
                     for (ch, o) in o.iter_mut().enumerate() {
@@ -206,7 +206,7 @@ impl Prepared {
         if self.diffuse.is_some() {
             // T↓ at θi and T↑ at θo: the lobes' corners serve for wo unless they were found at |wo·h|.
             let down_at = Self::corners(t, iz, ix, iy);
-            let up_symmetric = self.symmetric.then(|| Self::corners(t, oz, ox, oy));
+            let up_symmetric = self.opts.symmetric.then(|| Self::corners(t, oz, ox, oy));
             let up_at = up_symmetric.as_ref().unwrap_or(&corners);
             for (r, o) in out.chunks_exact_mut(c).enumerate().filter(|&(r, _)| above[r]) {
                 let at = |corners: &Corners, table: &[f64], ch: usize| {

@@ -6,33 +6,42 @@
 //! covered texels, `dilate` dispatches dilate the islands and one stores the light map, before the shading
 //! dispatch reads the surface back from the visibility target.
 
-use super::{
-    buffer, dispatch, finish, gpu, group, init, rasterize, scene_buffers, scoped, Gpu, Res, Scene, MESH, OPTICS, SCENE,
-};
+use super::{Material, Prepared, Technique};
 use crate::error::{value_error, Result};
-use crate::render::oat::{Material, Prepared, Variant};
-use crate::render::Texture;
+use crate::gpu::{
+    buffer, bytes, compute_module, compute_pipeline, dispatch, finish, gpu, group, init, rasterize, scene_buffers,
+    scoped, Gpu, Res, Scene, MESH, OPTICS, SCENE,
+};
+use crate::render::{Border, Texture};
 use std::sync::Arc;
 
 /// The shader: the primitives, the scene, the mesh, then Oat's kernels.
 pub fn compose() -> String {
-    format!("{OPTICS}\n{SCENE}\n{MESH}\n{}", include_str!("shaders/oat.wgsl"))
+    format!("{OPTICS}\n{SCENE}\n{MESH}\n{}", include_str!("oat.wgsl"))
 }
 
-/// Oat's kernels, in the order of Gpu::oat.
+/// Oat's kernels, in the order of `pipelines`.
 pub const KERNELS: [&str; 6] =
     ["light_map", "render_oat", "light_map_mesh", "dilate", "store_light_map", "render_oat_mesh"];
 
+/// Oat's pipelines on `gpu` (in the order of KERNELS), compiled on the first render, as the models' are.
+fn pipelines(gpu: &Gpu) -> &[wgpu::ComputePipeline] {
+    gpu.oat.get_or_init(|| {
+        let module = compute_module(&gpu.device, "oat", compose());
+        KERNELS.iter().map(|entry| compute_pipeline(&gpu.device, &module, entry)).collect()
+    })
+}
+
 /// The material's parameters in the layout of `OatParams`.
 fn words(m: &Material) -> [u32; 8] {
-    let variant = match m.variant {
-        Variant::Full => 0,
-        Variant::NormalFiltered => 1,
-        Variant::VertexNormal => 2,
+    let technique = match m.technique {
+        Technique::Full => 0,
+        Technique::NormalFiltered => 1,
+        Technique::VertexNormal => 2,
     };
-    let border = matches!(m.border, crate::render::Border::Wrap) as u32;
+    let border = matches!(m.border, Border::Wrap) as u32;
     let texel = m.texel.map(|x| (x as f32).to_bits());
-    [variant, m.shadowing as u32, border, m.inner.len() as u32, texel[0], texel[1], 0, 0]
+    [technique, m.shadowing as u32, border, m.inner.len() as u32, texel[0], texel[1], 0, 0]
 }
 
 /// The material's textures in one float32 array and their (offset, width, height, comps) rows, in oat.wgsl's order:
@@ -52,7 +61,7 @@ fn pack(m: &Material) -> Packed {
         push(Some(t), size(t));
     }
     let n = &m.outer_normal;
-    push(None, if m.variant == Variant::Full { [n.width, n.height, 3] } else { [1, 1, 3] });
+    push(None, if m.technique == Technique::Full { [n.width, n.height, 3] } else { [1, 1, 3] });
     for layer in &m.inner {
         push(Some(&layer.albedo), size(&layer.albedo));
         match &layer.opacity {
@@ -78,13 +87,23 @@ pub fn render(materials: &[Arc<Prepared>], scene: &Scene) -> Result<Vec<f32>> {
             limit >> 20
         ));
     }
-    scoped(gpu, || render_scoped(gpu, materials, &packed, scene))
+    let texels: usize = packed.iter().map(|(_, data)| 4 * data.len()).sum();
+    let what = format!(
+        "rendering {} Oat material(s) at {} x {} ({} of textures)",
+        materials.len(),
+        scene.width,
+        scene.height,
+        bytes(texels)
+    );
+    scoped(&gpu, &what, || render_scoped(&gpu, materials, &packed, scene))
 }
 
 type Packed = (Vec<[u32; 4]>, Vec<f32>);
 
-fn render_scoped(gpu: &'static Gpu, materials: &[Arc<Prepared>], packed: &[Packed], scene: &Scene) -> Result<Vec<f32>> {
-    let [light_map, render, light_map_mesh, dilate, store, render_mesh] = &gpu.oat;
+fn render_scoped(gpu: &Gpu, materials: &[Arc<Prepared>], packed: &[Packed], scene: &Scene) -> Result<Vec<f32>> {
+    let [light_map, render, light_map_mesh, dilate, store, render_mesh] = pipelines(gpu) else {
+        unreachable!("one pipeline per kernel")
+    };
     let pixels = scene.width * scene.height;
     let (render_params, lights) = scene_buffers(gpu, scene, 1);
     let size = (4 * 3 * pixels) as u64;
@@ -117,7 +136,7 @@ fn render_scoped(gpu: &'static Gpu, materials: &[Arc<Prepared>], packed: &[Packe
         let texels_n = m.outer_normal.width * m.outer_normal.height;
         match (&mesh, &seen) {
             (None, _) => {
-                if m.variant == Variant::Full {
+                if m.technique == Technique::Full {
                     let p = light_map;
                     let g = [group(gpu, p, 0, &[tex, texel]), scene_group(p, false)];
                     dispatch(&mut encoder, p, &[&g[0], &g[1]], texels_n);
@@ -128,7 +147,7 @@ fn render_scoped(gpu: &'static Gpu, materials: &[Arc<Prepared>], packed: &[Packe
             }
             (Some((vertices, triangles, n)), Some(seen)) => {
                 let (v, t) = ((0, Res::Buffer(vertices)), (1, Res::Buffer(triangles)));
-                if m.variant == Variant::Full {
+                if m.technique == Technique::Full {
                     let size = [m.outer_normal.width, m.outer_normal.height];
                     let uv = rasterize(gpu, &mut encoder, &gpu.raster[0], size, [vertices, triangles], *n, None);
                     let state =
@@ -183,5 +202,14 @@ fn render_scoped(gpu: &'static Gpu, materials: &[Arc<Prepared>], packed: &[Packe
         encoder.copy_buffer_to_buffer(&image, 0, &read, s as u64 * size, size);
         buffers.extend([params, textures, texels, image]);
     }
+    gpu.count_dispatch();
     finish(gpu, encoder, &read) // the buffers and views live until the work is done
+}
+
+#[cfg(test)]
+mod tests {
+    #[test]
+    fn the_shader_is_valid_wgsl() {
+        crate::gpu::tests::validate("oat", &super::compose());
+    }
 }

@@ -12,13 +12,15 @@
 //! The adding-doubling solver is isotropic: an anisotropic stack is evaluated as the model gives it. The fit is of
 //! the stack as prepared, so per-element inputs (flakes, the patina mask) raise a ValueError with it. CPU only.
 
-use super::sample::DEFENSIVE;
-use super::tabulated::{anisotropic_layer, zenith};
-use super::{Inputs, Model, Options, Proposal, BLOCK};
 use crate::error::{value_error, Result};
+use crate::models::common::block::simd_columns;
+use crate::models::common::mixture::DEFENSIVE;
+use crate::models::tabulated::{self, anisotropic_layer, zenith};
+use crate::models::{Inputs, Model, Proposal, BLOCK};
 use crate::stack::Stack;
 use crate::tables::adding_doubling::{Cells, NODES, N_THETA};
 use crate::tables::node;
+use crate::transport::Microsurface;
 use glam::DVec3;
 use rayon::prelude::*;
 use std::f64::consts::PI;
@@ -43,12 +45,21 @@ fn node_cosine(k: usize) -> f64 {
     (1.0 - (k as f64 / N_THETA as f64).powi(2)).max(1e-3)
 }
 
+/// `model` fitted to the transport of `stack` when `on` (a model's option `transport_fit`), else `model` itself.
+pub fn apply(on: bool, model: Box<dyn Model>, stack: &Stack) -> Result<Box<dyn Model>> {
+    if on {
+        fit(model, stack)
+    } else {
+        Ok(model)
+    }
+}
+
 /// `model` fitted to the transport of `stack` (module doc); an anisotropic stack's model is returned as it is.
 pub fn fit(model: Box<dyn Model>, stack: &Stack) -> Result<Box<dyn Model>> {
     if anisotropic_layer(stack).is_some() {
         return Ok(model);
     }
-    let exact = (super::tabulated::INFO.prepare)(stack, &Options::default())?;
+    let exact = tabulated::prepare(stack, Microsurface::default())?;
     let ch = stack.channels;
     // φ′ = π t² from the mirror plane, t at midpoints; weights ∝ dφ′ = 2π t dt, summing to 1.
     let t: Vec<f64> = (0..AZIMUTHS).map(|p| (p as f64 + 0.5) / AZIMUTHS as f64).collect();
@@ -60,21 +71,30 @@ pub fn fit(model: Box<dyn Model>, stack: &Stack) -> Result<Box<dyn Model>> {
             (cos, sin, t / total)
         })
         .collect();
+    crate::interrupt::check()?;
     let fit: Vec<[f32; 2]> = (0..NODES * NODES)
         .into_par_iter()
         .flat_map_iter(|k| {
+            if crate::interrupt::requested() {
+                return vec![[0.0; 2]; ch].into_iter(); // dropped: the fit returns Interrupted below
+            }
             let moments =
                 azimuthal_moments(&*model, &*exact, node_cosine(k / NODES), node_cosine(k % NODES), &azimuths, ch);
-            moments.into_iter().map(|[f, g, ff, fg]| {
-                // The least-squares slope, pulled towards the mean ratio where f hardly varies over φ, and at most
-                // S_MAX: where the model has next to nothing, the exact mean is added instead.
-                let ratio = if f > 0.0 { (g / f).min(S_MAX) } else { 0.0 };
-                let eps = 1e-4 * f * f + 1e-300;
-                let s = ((fg - f * g + eps * ratio) / (ff - f * f + eps)).clamp(0.0, ratio);
-                [s as f32, (g - s * f).max(0.0) as f32]
-            })
+            moments
+                .into_iter()
+                .map(|[f, g, ff, fg]| {
+                    // The least-squares slope, pulled towards the mean ratio where f hardly varies over φ, and at most
+                    // S_MAX: where the model has next to nothing, the exact mean is added instead.
+                    let ratio = if f > 0.0 { (g / f).min(S_MAX) } else { 0.0 };
+                    let eps = 1e-4 * f * f + 1e-300;
+                    let s = ((fg - f * g + eps * ratio) / (ff - f * f + eps)).clamp(0.0, ratio);
+                    [s as f32, (g - s * f).max(0.0) as f32]
+                })
+                .collect::<Vec<_>>()
+                .into_iter()
         })
         .collect();
+    crate::interrupt::check()?;
     let cells = Cells::new();
     let added_albedo = (0..NODES)
         .map(|o| {
@@ -152,7 +172,7 @@ impl TransportFit {
 impl Model for TransportFit {
     fn eval_block(&self, wi: [&[f64]; 3], wo: [&[f64]; 3], inputs: &Inputs, out: &mut [f64]) {
         self.model.eval_block(wi, wo, inputs, out);
-        super::simd_columns!(TransportFit, self, wi, wo, out)
+        simd_columns!(TransportFit, self, wi, wo, out)
     }
 
     fn proposals(&self, wo: DVec3) -> Vec<(f64, Proposal)> {
@@ -176,5 +196,62 @@ impl Model for TransportFit {
             );
         }
         self.model.check_inputs(given)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::models::common::testing::{dielectric, dir, f, lambert, stack};
+    use crate::models::microfacet::smooth_coat_lambert;
+    use crate::models::{weidlich_wilkie, Args};
+    use crate::optics::fresnel::diffuse_reflectance;
+
+    fn fitted(layers: Vec<crate::stack::Layer>) -> (Box<dyn Model>, Box<dyn Model>) {
+        let s = stack(layers);
+        let opts = weidlich_wilkie::Options::parse(&Args::defaults(weidlich_wilkie::INFO.options), 1).unwrap();
+        let published = Box::new(weidlich_wilkie::prepare(&s, &opts).unwrap());
+        let improved = fit(Box::new(weidlich_wilkie::prepare(&s, &opts).unwrap()), &s).unwrap();
+        (published, improved)
+    }
+
+    #[test]
+    fn the_fit_restores_the_smooth_coats_missing_inter_reflections() {
+        // Weidlich–Wilkie misses the coat's inter-reflections (the factor 1/(1 − ρ F̄_int) = 1.91 here: 48% low),
+        // which do not depend on the azimuth: the fit restores the closed form to the adding-doubling table's
+        // accuracy (measured 0.19% at most, θ ≤ 60°).
+        let (published, improved) = fitted(vec![dielectric(1.5, 0.0, 0.0, 0.0, 0.0), lambert(0.8)]);
+        let f_int = diffuse_reflectance(1.0 / 1.5);
+        for (ti, to, phi) in [(0.0, 0.0, 0.0), (30.0, 45.0, 90.0), (60.0, 20.0, 180.0)] {
+            let (wi, wo) = (dir(ti, 0.0), dir(to, phi));
+            let exact = smooth_coat_lambert(0.8, 1.5, f_int, wi.z, wo.z);
+            let (before, after) =
+                (f(&*published, wi, wo, 1)[0] / exact - 1.0, f(&*improved, wi, wo, 1)[0] / exact - 1.0);
+            assert!(before < -0.4 && after.abs() < 0.004, "({ti}, {to}, {phi}): {before} -> {after}");
+        }
+    }
+
+    #[test]
+    fn the_azimuthal_mean_is_the_adding_doubling_one_at_every_node() {
+        // By construction of a: over a uniform azimuth (not the fit's own samples), the fitted f and the table agree in
+        // the mean at the table's zenith nodes, to the f32 records and the quadratures (measured 1.1e-6 relative).
+        let layers = vec![dielectric(1.5, 0.3, 1.0, 0.2, 0.5), lambert(0.6)];
+        let s = stack(layers.clone());
+        let (_, improved) = fitted(layers);
+        let exact = tabulated::prepare(&s, Microsurface::default()).unwrap();
+        for (i, o) in [(3, 10), (20, 20), (40, 5)] {
+            let (zi, zo) = (node_cosine(i), node_cosine(o));
+            let (si, so) = ((1.0 - zi * zi).sqrt(), (1.0 - zo * zo).sqrt());
+            let wi = DVec3::new(si, 0.0, zi);
+            let mean = |m: &dyn Model| {
+                (0..720)
+                    .map(|p| (p as f64 + 0.5) * PI / 360.0)
+                    .map(|phi| f(m, wi, DVec3::new(so * phi.cos(), so * phi.sin(), zo), 1)[0])
+                    .sum::<f64>()
+                    / 720.0
+            };
+            let (a, b) = (mean(&*improved), mean(&*exact));
+            assert!((a / b - 1.0).abs() < 1e-5, "nodes ({i}, {o}): {a} vs {b}");
+        }
     }
 }

@@ -7,13 +7,16 @@
 //!
 //! lamina's slabs map onto these models as: extinction σ = σa + σs for the Beer–Lambert factor k, and colour c =
 //! σs / σ (the single-scattering albedo) for the diffuse term of scattering slabs; the HG asymmetry g is not used.
-//! As in both publications, no inter-reflections between layers are modelled by default; lamina's option
-//! `interreflection` adds those between a diffuse base and the coat above it (`add_interreflection`), and
-//! `conductor_interreflection` those between a conductor base and its coat (`add_conductor_interreflection`). The radiance
-//! compression 1/η² across each interface, which both publications omit, is lamina's option `eta2` (on by default:
-//! measured in docs/validation.md).
+//! As in both publications, no inter-reflections between layers are modelled by default; lamina's options
+//! `interreflection` and `conductor_interreflection` add those between the base and the coat above it
+//! (corrections/interreflection.rs: a gain per channel of a diffuse base, a tabulated diffuse term of a conductor
+//! base, which the walk evaluates). The radiance compression 1/η² across each interface, which both publications
+//! omit, is lamina's option `eta2` (on by default: measured in docs/validation.md).
 
-use super::{Options, Proposal, BLOCK};
+use super::block::{row, BLOCK};
+use super::options::Args;
+use crate::error::Result;
+use crate::models::Proposal;
 use crate::optics::distribution::{Distribution, G2Form, Microfacet};
 use crate::optics::fresnel::FresnelForm;
 use crate::optics::{diffuse, sin_theta};
@@ -25,7 +28,7 @@ use std::f64::consts::FRAC_1_PI;
 
 /// A rough (or smooth) interface with its relative IOR per channel (below / above) and κ for conductors; `table`
 /// holds Elek's precomputed Fresnel table per channel when that variant is used.
-pub struct Interface {
+pub struct SpInterface {
     pub mf: Microfacet,
     pub eta: Vec<f64>,
     pub kappa: Vec<f64>,
@@ -33,7 +36,7 @@ pub struct Interface {
     pub table: Vec<FresnelTable>,
 }
 
-impl Interface {
+impl SpInterface {
     /// Fresnel reflectance of channel `c` at cosine `cos_i` in `form`, or from the precomputed table if any.
     #[inline(always)]
     pub fn fresnel(&self, form: FresnelForm, cos_i: f64, c: usize) -> f64 {
@@ -65,7 +68,7 @@ impl Interface {
 
 pub enum SpLayer {
     Dielectric {
-        iface: Interface,
+        iface: SpInterface,
         thickness: f64,
         sigma_t: Vec<f64>,
         albedo: Vec<f64>,
@@ -74,7 +77,7 @@ pub enum SpLayer {
     /// light that the coat above returns to the base, at INTERREFLECTION_NODES cosines of the light's arrival
     /// (`add_conductor_interreflection`, `interreflected`).
     Conductor {
-        iface: Interface,
+        iface: SpInterface,
         diffuse: Vec<f64>,
     },
     /// `gain` per channel: 1, or with the `interreflection` correction the geometric series 1/(1 − ρ r).
@@ -87,7 +90,7 @@ pub enum SpLayer {
 
 impl SpLayer {
     /// The layer's interface (none for a diffuse base).
-    pub fn interface(&self) -> Option<&Interface> {
+    pub fn interface(&self) -> Option<&SpInterface> {
         match self {
             SpLayer::Dielectric { iface, .. } | SpLayer::Conductor { iface, .. } => Some(iface),
             SpLayer::Diffuse { .. } => None,
@@ -103,7 +106,7 @@ pub fn layers(stack: &Stack, dist: Distribution, clamp_roughness: bool) -> Vec<S
     for (layer, rel) in stack.layers.iter().zip(stack.interfaces()) {
         let iface = |alpha: (f64, f64), angle: f64, conductor: bool| {
             let alpha = if clamp_roughness { (alpha.0.max(rough_above.0), alpha.1.max(rough_above.1)) } else { alpha };
-            Interface {
+            SpInterface {
                 mf: Microfacet::new(dist, alpha.0, alpha.1, angle),
                 eta: rel.eta.clone(),
                 kappa: rel.kappa.clone(),
@@ -135,108 +138,12 @@ pub fn layers(stack: &Stack, dist: Distribution, clamp_roughness: bool) -> Vec<S
     out
 }
 
-/// The inter-reflections between a diffuse base of albedo ρ and the coat above it, summed (lamina's correction):
-/// light leaving the base diffusely returns with probability r (`coat_return`), so the base's light is multiplied by
-/// Σ (ρ r)^k = 1/(1 − ρ r). For a smooth, clear coat this is the exact smooth-coat-over-Lambert result (e.g.
-/// Mitsuba's `plastic`). Only the coat right above the base takes part; its roughness is ignored in r.
-pub fn add_interreflection(layers: &mut [SpLayer]) {
-    let n = layers.len();
-    if n < 2 {
-        return;
-    }
-    let (above, base) = layers.split_at_mut(n - 1);
-    let (SpLayer::Dielectric { iface, thickness, sigma_t, .. }, SpLayer::Diffuse { albedo, gain, .. }) =
-        (&above[n - 2], &mut base[0])
-    else {
-        return;
-    };
-    for (c, g) in gain.iter_mut().enumerate() {
-        *g = 1.0 / (1.0 - albedo[c] * coat_return(iface.eta[c], sigma_t[c] * thickness));
-    }
-}
-
-/// r = F̄(1/η) T̄²: the probability that diffuse light leaving a base comes back to it from the coat above, F̄ the
-/// coat interface's hemispherical reflectance seen from inside (optics::fresnel::diffuse_reflectance) and T̄ its
-/// slab's (`slab_transmittance`), crossed both ways.
-fn coat_return(eta: f64, tau: f64) -> f64 {
-    crate::optics::fresnel::diffuse_reflectance(1.0 / eta) * slab_transmittance(tau).powi(2)
-}
-
-/// T̄ = 2∫ e^{−τ/μ} μ dμ: the cosine-averaged transmittance of a slab of optical depth τ.
-fn slab_transmittance(tau: f64) -> f64 {
-    crate::quadrature::gauss_legendre(32)
-        .iter()
-        .map(|(x, w)| {
-            let mu = 0.5 * (x + 1.0);
-            0.5 * w * 2.0 * mu * if tau > 0.0 { (-tau / mu).exp() } else { 1.0 }
-        })
-        .sum()
-}
-
 /// Cosines at which a conductor base's inter-reflection term is tabulated: uniform in [0, 1].
 pub const INTERREFLECTION_NODES: usize = 8;
 
-/// The inter-reflections between a conductor base and the coat above it, summed (lamina's correction): of the light
-/// the base reflects, the part K that the coat sends back down (Fresnel reflection inside it, total internal
-/// reflection included) and its slab lets through, T̄², returns to the base, which a single pass leaves out. That light
-/// is taken as diffuse from then on: the base reflects Ā of it (its hemispherical albedo) and (1 − F̄) T̄ of that
-/// leaves, the coat returning r (`coat_return`), so X(μ) = A(μ) K(μ) T̄² Ā / (1 − Ā r) is what the base sends up
-/// again for light arriving at cosine μ, and E = (1 − F̄) T̄ of it leaves. A reciprocal term carries exactly that
-/// energy: f = T(μi) T(μo) / η² · g(μi′) g(μo′) / π with g = X √(E / Y), Y = 2∫ T(μo) X(μo′) μo dμo / η² (μo′ the
-/// view refracted into a smooth coat), g tabulated per channel at INTERREFLECTION_NODES cosines. A and K are
-/// single-scattering integrals over the base's visible normals (height-correlated Smith, four azimuths for an
-/// anisotropic base).
-pub fn add_conductor_interreflection(layers: &mut [SpLayer]) {
-    let n = layers.len();
-    if n < 2 {
-        return;
-    }
-    let (above, base) = layers.split_at_mut(n - 1);
-    let (SpLayer::Dielectric { iface: coat, thickness, sigma_t, .. }, SpLayer::Conductor { iface, diffuse }) =
-        (&above[n - 2], &mut base[0])
-    else {
-        return;
-    };
-    let (iface, nodes): (&Interface, _) = (iface, crate::quadrature::gauss_legendre(16));
-    let eta_up: Vec<f64> = coat.eta.iter().map(|e| 1.0 / e).collect();
-    // Ā = ∫ A(μ) 2μ dμ per channel, and A K per channel at the table's nodes.
-    let mut albedos = vec![0.0; eta_up.len()];
-    for (x, w) in &nodes {
-        let mu = 0.5 * (x + 1.0);
-        for (albedo, (a, _)) in albedos.iter_mut().zip(base_reflection(iface, mu, &eta_up)) {
-            *albedo += w * mu * a;
-        }
-    }
-    let at_nodes: Vec<Vec<(f64, f64)>> = (0..INTERREFLECTION_NODES)
-        .map(|j| base_reflection(iface, (j as f64 / (INTERREFLECTION_NODES - 1) as f64).max(1e-3), &eta_up))
-        .collect();
-    let mut table = Vec::with_capacity(iface.eta.len() * INTERREFLECTION_NODES);
-    for (c, (eta, sigma_t)) in coat.eta.iter().zip(sigma_t).enumerate() {
-        let eta = *eta;
-        let albedo = albedos[c];
-        let tau = sigma_t * thickness;
-        let t_mean = slab_transmittance(tau);
-        let series = t_mean * t_mean * albedo / (1.0 - albedo * coat_return(eta, tau));
-        let x: Vec<f64> = at_nodes.iter().map(|r| r[c].1 * series).collect();
-        let y: f64 = nodes
-            .iter()
-            .map(|(x_, w)| {
-                let mu = 0.5 * (x_ + 1.0);
-                let inside = (1.0 - (1.0 - mu * mu) / (eta * eta)).max(0.0).sqrt();
-                w * mu * crate::optics::fresnel::dielectric_transmittance(mu, eta) * node_lerp(&x, inside)
-            })
-            .sum::<f64>()
-            / (eta * eta);
-        let escape = (1.0 - crate::optics::fresnel::diffuse_reflectance(1.0 / eta)) * t_mean;
-        let scale = if y > 0.0 { (escape / y).sqrt() } else { 0.0 };
-        table.extend(x.iter().map(|v| v * scale));
-    }
-    *diffuse = table;
-}
-
 /// A row of values at INTERREFLECTION_NODES cosines uniform in [0, 1], linear between them at `mu`.
 #[inline(always)]
-fn node_lerp(row: &[f64], mu: f64) -> f64 {
+pub fn node_lerp(row: &[f64], mu: f64) -> f64 {
     let x = mu.clamp(0.0, 1.0) * (INTERREFLECTION_NODES - 1) as f64;
     let j = (x as usize).min(INTERREFLECTION_NODES - 2);
     row[j] + (x - j as f64) * (row[j + 1] - row[j])
@@ -248,32 +155,6 @@ fn node_lerp(row: &[f64], mu: f64) -> f64 {
 pub fn interreflected(diffuse: &[f64], c: usize, mu_i: f64, mu_o: f64) -> f64 {
     let row = &diffuse[c * INTERREFLECTION_NODES..][..INTERREFLECTION_NODES];
     node_lerp(row, mu_i) * node_lerp(row, mu_o)
-}
-
-/// (A, A K) per channel: the single-scattering albedo of a conductor interface lit at cosine `mu`, and the part of it
-/// that a dielectric above of relative IOR `eta_up[c]` (above / below) reflects back down, averaged over four
-/// azimuths. The visible normals and their masking are shared by every channel.
-fn base_reflection(iface: &Interface, mu: f64, eta_up: &[f64]) -> Vec<(f64, f64)> {
-    let mut out = vec![(0.0, 0.0); eta_up.len()];
-    let count = 4 * 64;
-    for k in 0..4 {
-        let phi = std::f64::consts::FRAC_PI_4 * k as f64;
-        let s = (1.0 - mu * mu).max(0.0).sqrt();
-        let v = DVec3::new(s * phi.cos(), s * phi.sin(), mu.max(1e-6));
-        for m in crate::tables::visible_normals(&iface.mf, v, 64) {
-            let w = crate::optics::reflect(v, m);
-            if w.z <= 0.0 {
-                continue;
-            }
-            let g = iface.mf.g2(G2Form::HeightCorrelated, v, w, m) / iface.mf.g1(v, m);
-            for (c, (a, ak)) in out.iter_mut().enumerate() {
-                let f = crate::optics::fresnel::conductor(v.dot(m), iface.eta[c], iface.kappa[c]) * g;
-                *a += f;
-                *ak += f * crate::optics::fresnel::dielectric(w.z, eta_up[c]);
-            }
-        }
-    }
-    out.iter().map(|(a, ak)| (a / count as f64, ak / count as f64)).collect()
 }
 
 /// What a dielectric interface passes to the slab below for one channel: the light's transmission into the slab,
@@ -310,9 +191,9 @@ pub fn beer_lambert(sigma_t: f64, thickness: f64, wi: DVec3, wo: DVec3) -> f64 {
 /// What distinguishes one single-pass model from another: its lobe geometry and how a dielectric interface transmits.
 pub trait Transport {
     /// D G2 / (4 cos θi cos θo) of the interface at (wi, wo) and the cosine wi·h its Fresnel term takes.
-    fn lobe(&self, iface: &Interface, wi: DVec3, wo: DVec3) -> Option<(f64, f64)>;
+    fn lobe(&self, iface: &SpInterface, wi: DVec3, wo: DVec3) -> Option<(f64, f64)>;
     /// The passage of channel `c` (and of every channel sharing its IOR) into the slab below.
-    fn passage(&self, iface: &Interface, wi: DVec3, wo: DVec3, c: usize) -> Option<Passage>;
+    fn passage(&self, iface: &SpInterface, wi: DVec3, wo: DVec3, c: usize) -> Option<Passage>;
 }
 
 /// Most channels evaluated together (a group shares one pass through the stack).
@@ -330,6 +211,32 @@ fn channel_groups(layers: &[SpLayer], channels: usize) -> Vec<std::ops::Range<us
     (0..channels).step_by(step).map(|c| c..(c + step).min(channels)).collect()
 }
 
+/// The options of the walk that the single-pass models share (their tables list them): the masking and Fresnel forms,
+/// Elek's roughness clamp, the radiance compression 1/η², and the inter-reflection corrections
+/// (corrections/interreflection.rs).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct WalkOptions {
+    pub g2: G2Form,
+    pub fresnel: FresnelForm,
+    pub clamp_roughness: bool,
+    pub eta2: bool,
+    pub interreflection: bool,
+    pub conductor_interreflection: bool,
+}
+
+impl WalkOptions {
+    pub fn parse(args: &Args) -> Result<WalkOptions> {
+        Ok(WalkOptions {
+            g2: args.choice("g2")?,
+            fresnel: args.choice("fresnel")?,
+            clamp_roughness: args.flag("clamp_roughness")?,
+            eta2: args.flag("eta2")?,
+            interreflection: args.flag("interreflection")?,
+            conductor_interreflection: args.flag("conductor_interreflection")?,
+        })
+    }
+}
+
 /// What every single-pass model prepares from a stack: its layers, the channel groups of a pass, and the options the
 /// walk itself uses (masking form, Fresnel form, the radiance compression 1/η²).
 pub struct Walk {
@@ -341,14 +248,10 @@ pub struct Walk {
 }
 
 impl Walk {
-    pub fn new(stack: &Stack, dist: Distribution, opts: &Options) -> Walk {
-        let mut layers = layers(stack, dist, opts.clamp_roughness);
-        if opts.interreflection {
-            add_interreflection(&mut layers);
-        }
-        if opts.conductor_interreflection {
-            add_conductor_interreflection(&mut layers);
-        }
+    /// The walk of `stack` with microfacets of `dist`, without corrections (corrections/interreflection.rs adds them to
+    /// its layers).
+    pub fn new(stack: &Stack, dist: Distribution, opts: &WalkOptions) -> Walk {
+        let layers = layers(stack, dist, opts.clamp_roughness);
         let groups = channel_groups(&layers, stack.channels);
         Walk { layers, groups, g2: opts.g2, fresnel: opts.fresnel, eta2: opts.eta2 }
     }
@@ -417,7 +320,7 @@ impl Walk {
         let mut state = [(DVec3::ZERO, DVec3::ZERO, false); BLOCK];
         let state = &mut state[..n];
         for (r, s) in state.iter_mut().enumerate() {
-            let (i, o) = (super::row(wi, r), super::row(wo, r));
+            let (i, o) = (row(wi, r), row(wo, r));
             *s = (i, o, i.z > 0.0 && o.z > 0.0);
         }
         let mut weight = [[1.0f64; GROUP]; BLOCK];
@@ -489,7 +392,7 @@ impl Walk {
     fn add_lobes(
         &self,
         model: &impl Transport,
-        iface: &Interface,
+        iface: &SpInterface,
         state: &[(DVec3, DVec3, bool)],
         weight: &[[f64; GROUP]],
         group: std::ops::Range<usize>,
@@ -570,7 +473,7 @@ impl Walk {
     /// The sampling mixture for wo: each rough interface's reflection lobe and the diffuse terms, weighted by their
     /// estimated energies, plus the defensive cosine share.
     pub fn proposals(&self, wo: DVec3, channels: usize) -> Vec<(f64, Proposal)> {
-        super::sample::defensive_mixture(self.terms(wo, &mut vec![0.0; channels]))
+        super::mixture::defensive_mixture(self.terms(wo, &mut vec![0.0; channels]))
     }
 
     /// The Dirac reflection at wo per channel (smooth interfaces seen through smooth ones).
@@ -579,6 +482,57 @@ impl Walk {
             self.terms(wo, out);
         } else {
             out.fill(0.0);
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::models::common::testing::dir;
+    use crate::models::steinberg;
+
+    #[test]
+    fn refraction_keeps_the_azimuth_and_obeys_snell() {
+        for (theta, phi) in [(0.0, 0.0), (30.0, 45.0), (80.0, 200.0)] {
+            let w = dir(theta, phi);
+            let sin_t = sin_theta(w) / 1.5;
+            let r = refracted_up(w, sin_t);
+            assert!((r.length() - 1.0).abs() < 1e-15 && (sin_theta(r) - sin_t).abs() < 1e-15);
+            if theta > 0.0 {
+                assert!((r.y.atan2(r.x) - w.y.atan2(w.x)).abs() < 1e-14, "{w} -> {r}");
+            }
+        }
+    }
+
+    #[test]
+    fn channels_walked_together_equal_each_channel_walked_alone() {
+        // The walk groups channels of one IOR into one pass (and walks dispersive ones one by one): each channel's
+        // f is that of the one-channel stack of its own constants.
+        let layer = |ior: [f64; 3], sigma_a: [f64; 3]| Layer::Dielectric {
+            ior: ior.to_vec(),
+            alpha: (0.2, 0.1),
+            angle: 0.4,
+            thickness: 0.7,
+            sigma_a: sigma_a.to_vec(),
+            sigma_s: vec![0.3, 0.0, 0.1],
+            g: 0.0,
+        };
+        let base = Layer::Conductor { ior: vec![0.2, 0.9, 1.1], k: vec![3.6, 2.6, 2.3], alpha: (0.3, 0.3), angle: 0.0 };
+        let opts = steinberg::Options::parse(&Args::defaults(steinberg::INFO.options)).unwrap();
+        for ior in [[1.5; 3], [1.45, 1.5, 1.55]] {
+            let rgb = Stack::new(vec![layer(ior, [0.1, 0.4, 0.9]), base.clone()], 1.0).unwrap();
+            let m = steinberg::prepare(&rgb, &opts).unwrap();
+            for (wi, wo) in [(dir(20.0, 0.0), dir(40.0, 150.0)), (dir(75.0, 60.0), dir(30.0, 300.0))] {
+                let mut all = [0.0; 3];
+                crate::models::eval_one(&m, wi, wo, &[], &mut all);
+                for (c, f_all) in all.iter().enumerate() {
+                    let mono = rgb.channel(c);
+                    let mut one = [0.0];
+                    crate::models::eval_one(&steinberg::prepare(&mono, &opts).unwrap(), wi, wo, &[], &mut one);
+                    assert_eq!(*f_all, one[0], "ior {ior:?}, channel {c}");
+                }
+            }
         }
     }
 }

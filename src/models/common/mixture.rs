@@ -4,7 +4,7 @@
 //! mixture's, per unit solid angle of wi; the weight f·cos θi / pdf is computed by the caller from the model's own f,
 //! so any mixture is unbiased.
 
-use super::{Model, Proposal};
+use crate::models::{Model, Proposal};
 use crate::optics::reflect;
 use crate::sampling::cosine_hemisphere;
 use glam::DVec3;
@@ -23,6 +23,17 @@ pub fn defensive_mixture(terms: Vec<(f64, Proposal)>) -> Vec<(f64, Proposal)> {
         lobes.push((DEFENSIVE * total / (1.0 - DEFENSIVE), Proposal::Cosine));
     }
     lobes
+}
+
+/// The factor that turns f at a sampled direction wi into the sample's weight f cos θi / pdf; 0 for a lost sample
+/// (pdf 0). Every sampler's weight (`Stack.sample`, the renderer's BSDF samples, and their WGSL mirror) is f times it.
+#[inline]
+pub fn weight_factor(wi: DVec3, pdf: f64) -> f64 {
+    if pdf > 0.0 {
+        wi.z / pdf
+    } else {
+        0.0
+    }
 }
 
 /// pdf of wi under one lobe for the viewing direction wo: D_wo(h) / (4 wo·h) for a reflection lobe (the Jacobian

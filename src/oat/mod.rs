@@ -10,7 +10,7 @@
 //! | `outer_normal`  | tangent-space unit normals of the outer layer (x along +u, y along +v, z outwards)    |
 //! | `inner`         | inner layers, outermost first: RGB albedo, opacity (every layer but the last), depth   |
 //! | `depth`         | an inner layer's depth below the outer surface, in texels (the chapter's thickness d) |
-//! | `variant`       | `Full`, `NormalFiltered` or `VertexNormal` (the chapter's §4.6 optimizations)          |
+//! | `technique`     | `Full`, `NormalFiltered` or `VertexNormal` (the chapter's §4.6 optimizations; Python's `variant`) |
 //! | `shadowing`     | weight light reaching inner layers by the outer transparency (the chapter's future work) |
 //! | `border`        | texture addressing: clamp or wrap                                                     |
 //! | `texel`         | the size of a texel in uv, (1/W, 1/H) of the outer textures (the chapter's 1/1024)     |
@@ -22,8 +22,11 @@
 //! its albedo blurred with radius s_k, the transmission distance. Light is Σ E max(0, N·l) / π: the radiance of a
 //! white Lambertian surface.
 
-use super::{incident, Border, Hit, Light, Shape, Texture};
+#[cfg(feature = "gpu")]
+pub mod gpu;
+
 use crate::optics::reflect;
+use crate::render::{incident, Border, Hit, Light, Shape, Surface, Texture};
 use glam::DVec3;
 use rayon::prelude::*;
 
@@ -44,7 +47,7 @@ pub const POISSON_DISC: [[f64; 2]; 12] = [
 ];
 
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub enum Variant {
+pub enum Technique {
     /// The chapter's technique: a texture-space light map, blurred for the inner layers.
     Full,
     /// §4.6, first optimization: the Poisson disc over the outer normal map, N·L per tap, averaged; no light map.
@@ -66,7 +69,7 @@ pub struct Material {
     pub outer_opacity: Texture,
     pub outer_normal: Texture,
     pub inner: Vec<InnerLayer>,
-    pub variant: Variant,
+    pub technique: Technique,
     pub shadowing: bool,
     pub border: Border,
     pub texel: [f64; 2],
@@ -74,7 +77,7 @@ pub struct Material {
     pub dilate: usize,
 }
 
-/// A material ready to shade: with its light map for variant `Full`.
+/// A material ready to shade: with its light map for the technique `Full`.
 pub struct Prepared {
     pub material: Material,
     pub light_map: Option<Texture>,
@@ -195,6 +198,12 @@ pub fn light_map(shape: &Shape, normal_map: &Texture, lights: &[Light], dilate_p
     Texture { width: w, height: h, comps: 3, data }
 }
 
+impl Surface for Prepared {
+    fn shade(&self, lights: &[Light], hit: &Hit, wo_world: DVec3) -> [f64; 3] {
+        shade(self, lights, hit, wo_world)
+    }
+}
+
 /// Radiance towards the viewer (wo_world) at a hit: the composite above.
 pub fn shade(prepared: &Prepared, lights: &[Light], hit: &Hit, wo_world: DVec3) -> [f64; 3] {
     let m = &prepared.material;
@@ -216,13 +225,13 @@ pub fn shade(prepared: &Prepared, lights: &[Light], hit: &Hit, wo_world: DVec3) 
             c.iter_mut().for_each(|x| *x *= w);
             c
         };
-        let light = match (m.variant, light_map) {
-            (Variant::Full, Some(map)) => mean(taps.map(|tap| scale(map.bilinear(tap, border), transparency(tap)))),
-            (Variant::VertexNormal, _) => scale(diffuse(lights, hit.p, hit.n), transparency(uv_k)),
+        let light = match (m.technique, light_map) {
+            (Technique::Full, Some(map)) => mean(taps.map(|tap| scale(map.bilinear(tap, border), transparency(tap)))),
+            (Technique::VertexNormal, _) => scale(diffuse(lights, hit.p, hit.n), transparency(uv_k)),
             _ => mean(taps.map(|tap| scale(lit(normal_at(&m.outer_normal, tap, border)), transparency(tap)))),
         };
-        let base = match m.variant {
-            Variant::VertexNormal => layer.albedo.bilinear(uv_k, border),
+        let base = match m.technique {
+            Technique::VertexNormal => layer.albedo.bilinear(uv_k, border),
             _ => poisson_filter(&layer.albedo, uv_k, s, texel, border),
         };
         let colour: [f64; 3] = std::array::from_fn(|c| base[c] * light[c]);

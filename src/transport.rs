@@ -1,0 +1,102 @@
+//! The physics of a stack as light transport sees it, one channel at a time: each interface's relative IOR and
+//! microfacets, each slab's coefficients, the opaque base, and the BSDF of every boundary. The Monte Carlo reference
+//! (reference.rs) samples these boundaries and slabs; the adding-doubling solver (tables/adding_doubling.rs) projects
+//! them onto its grid. Both read them from here, so that they solve the same transport.
+
+use crate::optics::diffuse;
+use crate::optics::distribution::{Distribution, G2Form, Microfacet};
+use crate::stack::{Layer, Stack};
+use glam::DVec3;
+
+/// The microsurface of every rough boundary: its distribution and masking-shadowing (the reference's options, which
+/// `model="tabulated"` shares).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Microsurface {
+    pub distribution: Distribution,
+    pub g2: G2Form,
+}
+
+impl Default for Microsurface {
+    fn default() -> Self {
+        Microsurface { distribution: Distribution::Ggx, g2: G2Form::HeightCorrelated }
+    }
+}
+
+/// One interface as a path sees it: roughness and the relative IOR η_below / η_above.
+pub struct Interface {
+    pub mf: Microfacet,
+    pub eta: f64,
+}
+
+/// The medium below an interface: thickness and coefficients.
+pub struct Slab {
+    pub thickness: f64,
+    pub sigma_a: f64,
+    pub sigma_s: f64,
+    pub g: f64,
+}
+
+/// The opaque base.
+pub enum Base {
+    Conductor { mf: Microfacet, eta: f64, k: f64 },
+    Diffuse { albedo: f64, sigma: f64 },
+}
+
+/// The stack resolved for one channel: interface i is the top of slab i; the base lies below the last slab. Boundary
+/// b is interface b, or the base when b equals the number of interfaces.
+pub struct ChannelStack {
+    pub interfaces: Vec<Interface>,
+    pub slabs: Vec<Slab>,
+    pub base: Base,
+    pub g2: G2Form,
+}
+
+impl ChannelStack {
+    pub fn new(stack: &Stack, channel: usize, surface: Microsurface) -> ChannelStack {
+        let (mut interfaces, mut slabs) = (Vec::new(), Vec::new());
+        let g2 = surface.g2;
+        for (layer, rel) in stack.layers.iter().zip(stack.interfaces()) {
+            let mf = layer.microfacet(surface.distribution);
+            match layer {
+                Layer::Dielectric { thickness, sigma_a, sigma_s, g, .. } => {
+                    interfaces.push(Interface { mf: mf.unwrap(), eta: rel.eta[channel] });
+                    slabs.push(Slab {
+                        thickness: *thickness,
+                        sigma_a: sigma_a[channel],
+                        sigma_s: sigma_s[channel],
+                        g: *g,
+                    });
+                }
+                Layer::Conductor { .. } => {
+                    let base = Base::Conductor { mf: mf.unwrap(), eta: rel.eta[channel], k: rel.kappa[channel] };
+                    return ChannelStack { interfaces, slabs, base, g2 };
+                }
+                Layer::Diffuse { albedo, roughness } => {
+                    let base = Base::Diffuse { albedo: albedo[channel], sigma: *roughness };
+                    return ChannelStack { interfaces, slabs, base, g2 };
+                }
+            }
+        }
+        unreachable!("validated stacks end in an opaque base")
+    }
+
+    /// BSDF value f(w_light, w_view) of boundary `b`: light arrives along w_light and leaves along w_view, both
+    /// pointing away from the boundary (Walter et al. 2007 for rough interfaces, Oren–Nayar 1994 for the base).
+    pub fn boundary_f(&self, b: usize, w_light: DVec3, w_view: DVec3) -> f64 {
+        if let Some(it) = self.interfaces.get(b) {
+            return crate::bsdf::rough_dielectric(&it.mf, self.g2, it.eta, w_light, w_view);
+        }
+        match &self.base {
+            Base::Conductor { mf, eta, k } => crate::bsdf::rough_conductor(mf, self.g2, *eta, *k, w_light, w_view),
+            Base::Diffuse { albedo, sigma } => albedo * diffuse::oren_nayar_shape(*sigma, w_light, w_view),
+        }
+    }
+
+    /// True when boundary `b` scatters through Dirac deltas only (a smooth interface or a smooth conductor).
+    pub fn is_delta(&self, b: usize) -> bool {
+        match self.interfaces.get(b) {
+            Some(it) => it.mf.is_smooth(),
+            None => matches!(&self.base, Base::Conductor { mf, .. } if mf.is_smooth()),
+        }
+    }
+}
