@@ -1,5 +1,7 @@
-"""Writes docs/reliability.md: how lamina's public Python API answers bad input, and (from docs/fuzz.json, written by
-scripts/fuzz.py) how often its models return NaN, Inf or negative values on random input.
+"""Writes docs/reliability.md: how lamina's public Python API answers bad input, the faults it survives (tests/faults.py
+provokes each: a damaged or unwritable cache, concurrent writers, a killed Dask worker, Ctrl-C, GPU faults) with what
+was measured, and (from docs/fuzz.json, written by scripts/fuzz.py) how often its models return NaN, Inf or negative
+values on random input.
 
 Every case is an input a new user could plausibly write. Each should raise a ValueError or TypeError whose message
 names the offending parameter; anything else (another exception, a pyo3 PanicException, or no error at all) is
@@ -23,6 +25,9 @@ from lamina.catalogue import model
 from lamina.spectrum import ior, to_xyz, xyz_weights
 
 ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT / "tests"))
+import faults  # noqa: E402  (tests/faults.py: the fault scenarios, shared with tests/test_faults.py)
+
 OUT = ROOT / "docs" / "reliability.md"
 FUZZ = ROOT / "docs" / "fuzz.json"
 MESSAGE_CHARS = 160
@@ -548,10 +553,105 @@ def fuzz_section(path: Path = FUZZ) -> List[str]:
     return lines
 
 
+def _yes(ok: bool) -> str:
+    return "yes" if ok else "**no**"
+
+
+def fault_section() -> List[str]:
+    """Each fault of tests/faults.py, provoked now, and its outcome (make test asserts the same, tests/test_faults.py
+    and tests/test_gpu.py)."""
+    lines = [
+        "## Faults",
+        "",
+        "Each fault is provoked for real by `tests/faults.py` (`make test` asserts the outcomes: tests/test_faults.py, "
+        "tests/test_gpu.py) in a temporary cache, and in a child process where it would touch the caller.",
+        "",
+        "### A damaged cache entry (`$LAMINA_CACHE`)",
+        "",
+        "Cached by one process, damaged, asked for by a fresh one: every entry carries a header and a checksum "
+        "(src/cache.rs).",
+        "",
+        "| entry | damage | results bit-identical | entry rebuilt intact |",
+        "|---|---|---|---|",
+    ]
+    for what, damage, same, intact in faults.cache_corruption():
+        lines.append(f"| {what} | {damage} | {_yes(same)} | {_yes(intact)} |")
+    lines += [
+        "",
+        "### A cache that cannot be written",
+        "",
+        "| cache | results as with a writable cache | warnings | temporary files left |",
+        "|---|---|---|---|",
+    ]
+    described = {
+        "unwritable": "LAMINA_CACHE through a regular file (creating its folder fails, as for a read-only one)",
+        "full": "a file-size limit of 64 KiB (RLIMIT_FSIZE): a table's write fails midway, as on a full disk",
+    }
+    for name, run in faults.unwritable_cache().items():
+        warning = cell(first_line(run["warnings"][0], 120)) if run["warnings"] else ""
+        left = len(run["left behind"])
+        lines.append(f"| {described[name]} | {_yes(run['same'])} | {len(run['warnings'])}: {warning} | {left} |")
+    lines += [
+        "",
+        "### Concurrent writers of one table",
+        "",
+        "| writers | the same bits | files | intact | temporary files left |",
+        "|---|---|---:|---|---:|",
+    ]
+    for who, run in faults.concurrent_writers().items():
+        same, intact, left = _yes(run["same"]), _yes(run["intact"]), run["left behind"]
+        lines.append(f"| two {who} at once | {same} | {run['files']} | {intact} | {left} |")
+    lost = faults.lost_worker()
+    lines += [
+        "",
+        "### A Dask worker killed mid-sweep",
+        "",
+        "`lamina.dask.suite_reference` over three materials on a two-worker `LocalCluster`; one worker is killed "
+        "(SIGKILL) while it runs a task.",
+        "",
+        "| worker killed | sweep completed | bit-identical to a local run |",
+        "|---|---|---|",
+        f"| {_yes(lost['killed'])} | {_yes(lost['completed'])} | {_yes(lost['same'])} |",
+        "",
+        "### Ctrl-C",
+        "",
+        "| interrupted | KeyboardInterrupt | seconds after the signal | cache entries or temporary files left |",
+        "|---|---|---:|---|",
+    ]
+    for what, run in faults.interrupts().items():
+        extra = f" (of a {run['solve seconds']:.1f} s solve)" if "solve seconds" in run else ""
+        left = len(run.get("left behind", []))
+        seconds = f"{run['seconds']:.2f}" if run["seconds"] is not None else "—"
+        lines.append(f"| {what}{extra} | {_yes(run['raised'])} | {seconds} | {left} |")
+    lines += [
+        "| a fit (`lamina.fit`) | not yet: lamina has no fit (the Fit issue) | | |",
+        "",
+        "### GPU faults",
+        "",
+    ]
+    if lamina.gpu.adapter() is None:
+        lines.append(f"Not measured: no GPU adapter ({lamina.gpu._adapter()[1]}).")
+        return lines
+    gpu = faults.gpu_faults()
+    lines += [
+        f"On {gpu['adapter']}. A render that needs more than the device holds, then a device lost in the middle of an "
+        "evaluation of 5M pairs (it destroys itself after one of its three dispatches: lamina's fault injection, "
+        "`_lamina.gpu_lose_after`).",
+        "",
+        "| fault | exception | the next call |",
+        "|---|---|---|",
+        f"| render of 16384 x 16384 | {cell(first_line(gpu['too large'] or 'none', 220))} | a 32 x 32 render works |",
+        f"| device lost mid-batch | {cell(first_line(gpu['lost'] or 'none', 220))} | evaluates again, "
+        f"{gpu['after lost']:.1e} from the CPU |",
+    ]
+    return lines
+
+
 def document(rows: List[Tuple[str, str, str, bool]], fuzz_path: Path = FUZZ) -> str:
     """docs/reliability.md's text."""
     head = ["# Reliability", "", "Generated by `scripts/reliability.py` (`make reliability`); do not edit by hand.", ""]
-    return "\n".join(head + bad_input_section(rows) + [""] + fuzz_section(fuzz_path)) + "\n"
+    body = bad_input_section(rows) + [""] + fault_section() + [""] + fuzz_section(fuzz_path)
+    return "\n".join(head + body) + "\n"
 
 
 def main() -> int:

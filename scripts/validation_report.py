@@ -322,9 +322,14 @@ def reference_albedo(name):
     return _REFERENCE_ALBEDO[name]
 
 
+#: What suite_table measures, by model and material, for docs/validation.json (which the tests read): the lobe
+#: error per incident angle and its reference's noise floor, the signed albedo error (green) and its standard error.
+SUITE = {}
+
+
 def suite_table(model, **options):
-    """Rows of lobe error and albedo error of `model` against the reference on the whole suite."""
-    from lamina.reference import SUITE_THETAS, suite_reference
+    """Rows of lobe error and albedo error of `model` against the reference on the whole suite (and SUITE's entry)."""
+    from lamina.reference import SUITE_THETAS, suite_reference, suite_reference_albedo
 
     out = [
         "| material | lobe error "
@@ -337,13 +342,19 @@ def suite_table(model, **options):
     for name in lamina.materials.SUITE:
         stack = lamina.materials.suite(name)
         try:
-            wi, wo, f, _ = suite_reference(name, samples=20_000)
+            wi, wo, f, se = suite_reference(name, samples=20_000)
             b = stack.eval(wi, wo, model, **options)
         except ValueError as e:
             out.append(f"| {name} | not supported: {str(e).split(';')[0]} | |")
             continue
         lobe = np.abs(b - f).sum(axis=(1, 2)) / np.abs(f).sum(axis=(1, 2))
         a_m = stack.albedo(wi[:, 0, :], model, **options)[:, 1]
+        SUITE.setdefault(model, {})[name] = {
+            "lobe": lobe.tolist(),
+            "lobe_floor": (np.sqrt(2 / np.pi) * se.sum(axis=(1, 2)) / np.abs(f).sum(axis=(1, 2))).tolist(),
+            "albedo": (a_m - reference_albedo(name)).tolist(),
+            "albedo_se": suite_reference_albedo(name)[2][:, 1].tolist(),
+        }
         out.append(
             f"| {name} | "
             + " / ".join(f"{x:.3f}" for x in lobe)
@@ -1065,7 +1076,23 @@ def main():
     path = ROOT / "docs" / "validation.md"
     path.write_text("\n".join(out) + "\n")
     print(f"wrote {path}", file=sys.stderr)
+    write_suite_json()
+
+
+def write_suite_json():
+    """docs/validation.json: SUITE, the suite tables' measurements, which tests/ holds the models to."""
+    path = ROOT / "docs" / "validation.json"
+    from lamina.reference import SUITE_THETAS
+
+    doc = {"generated_by": "scripts/validation_report.py", "thetas": list(SUITE_THETAS), "suite": SUITE}
+    path.write_text(json.dumps(doc, indent=1) + "\n")
+    print(f"wrote {path}", file=sys.stderr)
 
 
 if __name__ == "__main__":
-    main()
+    if sys.argv[1:] == ["--suite"]:  # the suite tables alone: docs/validation.json, without rewriting validation.md
+        for model in ("belcour", "steinberg", "weidlich_wilkie"):
+            suite_table(model)
+        write_suite_json()
+    else:
+        main()

@@ -7,6 +7,7 @@ when root). Without an adapter these tests fail, saying how to get one, unless L
 
 import os
 
+import faults
 import lamina
 import numpy as np
 import pytest
@@ -401,3 +402,14 @@ def test_sample_and_pdf_match_the_cpu(material, model, options):
     p_gpu = stack.pdf(wi_any, wo_any, model, device="gpu", **options)
     big = p_cpu > 1e-6 * p_cpu.max()
     assert np.max(np.abs(p_gpu[big] - p_cpu[big]) / p_cpu[big]) <= RTOL and np.all(p_gpu[~big] <= 1e-6 * p_cpu.max())
+
+
+def test_a_gpu_fault_names_the_device_and_the_size_and_the_next_call_works():
+    """A render larger than the device holds, a device lost mid-batch (tests/faults.py, in a child process)."""
+    run = faults.gpu_faults()
+    adapter = lamina.gpu.adapter()["name"]
+    assert run["adapter"] == adapter
+    for key, size in (("too large", "GiB"), ("lost", "MiB")):
+        assert run[key] is not None and adapter in run[key] and size in run[key], (key, run[key])
+    assert "lost" in run["lost"] and run["after too large"] > 0.0
+    assert run["after lost"] < 1e-3, run["after lost"]  # the next evaluation works (parity itself: tests above)

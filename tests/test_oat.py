@@ -56,7 +56,8 @@ def test_parallax_is_listing_1(rng):
     np.testing.assert_allclose(uv_in, uv + (1 / 1024) * s[:, None] * t[:, :2], rtol=1e-12, atol=1e-15)
     # Head-on, the inner layer lies straight beneath, at the layer's depth; a (u, v) texel pair scales each axis.
     uv_0, s_0 = oat.parallax([0.3, 0.6], [0, 0, 1.0], [0, 0, 1.0], 7.0, texel_size=(0.01, 0.02))
-    np.testing.assert_allclose(uv_0, [0.3, 0.6]) and np.testing.assert_allclose(s_0, 7.0)
+    np.testing.assert_allclose(uv_0, [0.3, 0.6])
+    np.testing.assert_allclose(s_0, 7.0)
     uv_1, _ = oat.parallax([0.5, 0.5], _unit(np.array([0.6, 0.0, 0.8])), [0, 0, 1.0], 1.0, texel_size=(0.01, 0.02))
     # The eye is towards +u: the view goes on into the material towards −u, by texel · (d/0.8) · 0.6.
     np.testing.assert_allclose(uv_1, [0.5 - 0.01 * 0.6 / 0.8, 0.5], rtol=1e-14)

@@ -12,6 +12,7 @@ import sys
 
 import numpy as np
 import pytest
+from conftest import random_hemisphere
 from lamina import Dielectric, Stack
 from lamina.atlas import lobe_errors
 from lamina.materials import SUITE, metal, suite
@@ -92,5 +93,15 @@ def test_tables_are_cached_on_disk_keyed_by_the_stack(tmp_path):
 
 
 def test_gpu_device_is_refused_clearly():
-    with pytest.raises(ValueError, match='model "tabulated" has no GPU implementation'):
+    with pytest.raises(ValueError, match="model 'tabulated' has no GPU implementation"):
         suite("rough-coat-rough-copper").eval([0, 0, 1], [0, 0, 1], "tabulated", device="gpu")
+
+
+@pytest.mark.parametrize("name", ["rough-coat-rough-copper", "three-layer", "scattering-slab"])
+def test_tabulated_is_reciprocal_on_layered_stacks(name, rng):
+    """Helmholtz reciprocity through the whole stack: the table keeps each reciprocal pair once and interpolates (θi,
+    θo) symmetrically, and the top's own reflection is exact, so f(wi, wo) = f(wo, wi) to rounding."""
+    stack = suite(name)
+    wi, wo = random_hemisphere(rng, 5000, 0.02), random_hemisphere(rng, 5000, 0.02)
+    a, b = stack.eval(wi, wo, "tabulated"), stack.eval(wo, wi, "tabulated")
+    np.testing.assert_allclose(a, b, rtol=1e-12, atol=1e-15 * a.max())

@@ -889,9 +889,20 @@ pub fn resident_seconds(model: &str, stack: &Stack, args: &Args, pairs: &[f32], 
     })
 }
 
+/// A light as scene.wgsl's `incident` reads it: two rows, (kind: 0 directional, 1 point; its direction or position)
+/// and (its irradiance or intensity, 0).
+pub fn light_rows(light: &crate::render::Light) -> [f32; 8] {
+    use crate::render::Light;
+    match *light {
+        Light::Directional { direction: d, irradiance: e } => [0.0, d.x, d.y, d.z, e[0], e[1], e[2], 0.0],
+        Light::Point { position: p, intensity: i } => [1.0, p.x, p.y, p.z, i[0], i[1], i[2], 0.0],
+    }
+    .map(|x| x as f32)
+}
+
 /// A scene for the GPU renderer: the image size, the shape (0 sphere, 1 plane, 2 the mesh), the mesh's arrays
 /// (Mesh::gpu_arrays), the perspective camera's pinhole and its forward, right and up vectors (scaled as in
-/// scene.wgsl; None: orthographic), and per light two rows (kind, xyz), (rgb, 0).
+/// scene.wgsl; None: orthographic), and each light's rows (`light_rows`).
 pub struct Scene {
     pub width: usize,
     pub height: usize,

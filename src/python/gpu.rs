@@ -5,7 +5,7 @@ use super::api::{parse_options, parse_stack};
 use super::arrays::{batch, Kind};
 use super::oat::OatMaterial;
 use crate::gpu;
-use crate::render::{pinhole, Light, Shape};
+use crate::render::{pinhole, Shape};
 use numpy::{PyArrayDyn, PyArrayMethods, PyReadonlyArray3, PyUntypedArrayMethods};
 use pyo3::exceptions::PyRuntimeError;
 use pyo3::prelude::*;
@@ -212,16 +212,8 @@ fn scene(
         let [forward, right, up] = pinhole(o, glam::DVec3::from_array(t), fov, width as f64 / height as f64);
         [o, forward, right, up].map(|v| v.as_vec3().to_array())
     });
-    let mut rows = Vec::new();
-    for (kind, v, rgb) in &lights {
-        rows.push(
-            match super::render::light(kind, *v, *rgb)? {
-                Light::Directional { direction: d, irradiance: e } => [0.0, d.x, d.y, d.z, e[0], e[1], e[2], 0.0],
-                Light::Point { position: p, intensity: i } => [1.0, p.x, p.y, p.z, i[0], i[1], i[2], 0.0],
-            }
-            .map(|x| x as f32),
-        );
-    }
+    let rows = lights.iter().map(|(kind, v, rgb)| Ok(gpu::light_rows(&super::render::light(kind, *v, *rgb)?)));
+    let rows = rows.collect::<PyResult<Vec<_>>>()?;
     Ok(gpu::Scene { width, height, shape, mesh, camera, lights: rows, env: None })
 }
 
