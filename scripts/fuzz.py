@@ -22,8 +22,8 @@ from lamina import Conductor, Dielectric, Diffuse, Stack
 ROOT = Path(__file__).resolve().parents[1]
 BATCH = 1 << 20
 
-#: Option variants per model: every value of every option, one option changed at a time from the defaults.
-VARIANTS = {
+#: Option sets per model: every value of every option, one option changed at a time from the defaults.
+OPTION_SETS = {
     "microfacet": [
         {},
         {"distribution": "beckmann"},
@@ -61,6 +61,7 @@ VARIANTS = {
         {"clamp_roughness": False, "eta2": False},
     ],
     "albedo_scaling": [{}, {"scaling": "view"}, {"g2": "height_correlated"}],
+    "tabulated": [{}, {"distribution": "beckmann"}],
 }
 
 
@@ -127,7 +128,7 @@ def directions(rng, n: int, dtype) -> tuple[np.ndarray, np.ndarray]:
 
 def fuzz_model(model: str, pairs: float, seed: int) -> list[dict]:
     rows = []
-    variants = VARIANTS[model]
+    variants = OPTION_SETS[model]
     per_variant = int(pairs) // len(variants)
     for v, opts in enumerate(variants):
         rng = np.random.default_rng([seed, v, len(model)])

@@ -619,7 +619,7 @@ def fault_section() -> List[str]:
         "|---|---|---:|---|",
     ]
     for what, run in faults.interrupts().items():
-        extra = f" (of a {run['solve seconds']:.1f} s solve)" if "solve seconds" in run else ""
+        extra = f" (a child that solves it in {run['solve seconds']:.1f} s)" if "solve seconds" in run else ""
         left = len(run.get("left behind", []))
         seconds = f"{run['seconds']:.2f}" if run["seconds"] is not None else "—"
         lines.append(f"| {what}{extra} | {_yes(run['raised'])} | {seconds} | {left} |")
@@ -636,7 +636,7 @@ def fault_section() -> List[str]:
     lines += [
         f"On {gpu['adapter']}. A render that needs more than the device holds, then a device lost in the middle of an "
         "evaluation of 5M pairs (it destroys itself after one of its three dispatches: lamina's fault injection, "
-        "`_lamina.gpu_lose_after`).",
+        "`_lamina._gpu_lose_after`).",
         "",
         "| fault | exception | the next call |",
         "|---|---|---|",

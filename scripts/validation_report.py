@@ -715,7 +715,8 @@ def corrections_section():
         "## lamina's corrections, one at a time",
         "",
         'Each correction is an option of its own; `variant="improved"` switches on the ones listed for the model '
-        '(models/options.rs, `improved`), chosen by the measurements below; `variant="published"` is the default.',
+        "(the `variant` option of each model: models/common/options.rs), chosen by the measurements below; "
+        '`variant="published"` is the default.',
         "",
         "- `interreflection` (steinberg, weidlich_wilkie): the geometric series 1/(1 − ρ r) of inter-reflections "
         "between a diffuse base and the coat above it, r = F̄(1/η) T̄² (single_pass.rs, `add_interreflection`); exact "
@@ -732,7 +733,8 @@ def corrections_section():
         "light (tables/steinberg.rs, checked against the integral of Walter et al.'s BTDF), instead of 1 − R "
         "(Belcour: R + T = 1) or the mean Fresnel transmission t (Steinberg). It only removes energy.",
         '- `transport_fit` (belcour, steinberg, weidlich_wilkie; `variant="improved"` is this correction alone, '
-        "its column below): the model's lobes fitted to the stack's own transport (models/transport_fit.rs). "
+        "its column below): the model's lobes fitted to the stack's own transport "
+        "(models/corrections/transport_fit.rs). "
         'Preparing it solves the stack by adding-doubling (model="tabulated"\'s cached table) and fits, per channel '
         "at each of the table's 65 × 65 zenith node pairs, f ← s f + a over the azimuth: s the least-squares slope, "
         "a = E_φ[f_ad] − s E_φ[f] ≥ 0, so that the azimuthal mean is the adding-doubling one. The light the model "

@@ -3,12 +3,12 @@
 //! of its own (process, thread and call), then renamed into place. So a truncated, zeroed or garbage file is detected
 //! and rebuilt, never read as data; concurrent writers of one entry leave one complete file (the same bits: what they
 //! write is deterministic); and a cache that cannot be written (read-only, full) costs only a recomputation: lamina
-//! warns once and computes in memory. The tables (tables/mod.rs) and the reference results (python/lamina/reference.py)
+//! computes in memory and warns once (`take_warning`: the Python bindings issue it as a UserWarning). The tables (tables/mod.rs) and the reference results (python/lamina/reference.py)
 //! are cached here.
 
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
-use std::sync::OnceLock;
+use std::sync::Mutex;
 
 /// The first bytes of every entry.
 const MAGIC: [u8; 8] = *b"lamina\x01\x00";
@@ -73,23 +73,22 @@ pub fn write(path: &Path, payload: &[u8]) {
     }
 }
 
-/// Where warnings go: set by the Python bindings (Python's `warnings`), else stderr.
-static WARN: OnceLock<fn(&str)> = OnceLock::new();
+/// The cache's warning, waiting for the bindings to issue it (`take_warning`): recorded, not issued, where the cache is
+/// written, which may be a thread inside a table's initialisation that another thread waits on while holding Python's
+/// lock.
+static PENDING: Mutex<Option<String>> = Mutex::new(None);
 
-/// Sends the cache's warnings to `warn` (once per process: the first caller's).
-pub fn set_warn(warn: fn(&str)) {
-    let _ = WARN.set(warn);
-}
-
-/// The first of the cache's warnings in this process; the others are dropped.
+/// The first of the cache's warnings in this process is kept for `take_warning`; the others are dropped.
 fn warn_once(message: &str) {
     static WARNED: AtomicBool = AtomicBool::new(false);
     if !WARNED.swap(true, Ordering::Relaxed) {
-        match WARN.get() {
-            Some(warn) => warn(message),
-            None => eprintln!("{message}"),
-        }
+        *PENDING.lock().unwrap_or_else(|e| e.into_inner()) = Some(message.to_string());
     }
+}
+
+/// The cache's warning not yet issued, if any (once).
+pub fn take_warning() -> Option<String> {
+    PENDING.lock().unwrap_or_else(|e| e.into_inner()).take()
 }
 
 #[cfg(test)]

@@ -322,15 +322,15 @@ pub fn estimate_f(s: &ChannelStack, wi: DVec3, wo: DVec3, rng: &mut Rng, targets
 /// Path i uses stream (seed mixed with wi and wo, i): reproducible whatever the thread count or batch, and
 /// independent between direction pairs (so averages over directions have honest standard errors).
 pub fn run_f(s: &ChannelStack, wi: DVec3, wo: DVec3, (first, samples): (u64, u64), seed: u64) -> (f64, f64, u64) {
-    let blocks = samples.div_ceil(PATHS_PER_TASK as u64);
+    let tasks = samples.div_ceil(PATHS_PER_TASK as u64);
     let seed = Rng::seed_for(seed, &[wi.x, wi.y, wi.z, wo.x, wo.y, wo.z]);
     let end = first + samples;
-    let parts: Vec<(f64, f64, u64)> = (0..blocks)
+    let parts: Vec<(f64, f64, u64)> = (0..tasks)
         .into_par_iter()
-        .map(|blk| {
+        .map(|task| {
             let mut targets = Vec::new();
             let mut acc = (0.0, 0.0, 0u64);
-            for i in first + blk * PATHS_PER_TASK as u64..(first + (blk + 1) * PATHS_PER_TASK as u64).min(end) {
+            for i in first + task * PATHS_PER_TASK as u64..(first + (task + 1) * PATHS_PER_TASK as u64).min(end) {
                 let mut rng = Rng::new(seed, i);
                 match estimate_f(s, wi, wo, &mut rng, &mut targets) {
                     Some(v) => {
@@ -459,7 +459,7 @@ impl Tally {
 }
 
 /// Runs paths `first..first + samples` from `wi` and tallies escaping energy with `bin(dir)` (None: not counted).
-/// Path i uses stream (seed mixed with wi, i); blocks are reduced in order, so the result does not depend on the
+/// Path i uses stream (seed mixed with wi, i); tasks are reduced in order, so the result does not depend on the
 /// thread count, and different directions get independent streams.
 pub fn run(
     s: &ChannelStack,
@@ -469,10 +469,10 @@ pub fn run(
     bins: usize,
     bin: impl Fn(DVec3) -> Option<usize> + Sync,
 ) -> Tally {
-    let blocks = samples.div_ceil(PATHS_PER_TASK as u64);
+    let tasks = samples.div_ceil(PATHS_PER_TASK as u64);
     let end = first + samples;
     let seed = Rng::seed_for(seed, &wi.to_array());
-    let tallies: Vec<Tally> = (0..blocks)
+    let tallies: Vec<Tally> = (0..tasks)
         .into_par_iter()
         .map(|b| {
             let mut t = Tally::new(bins);
@@ -499,28 +499,12 @@ pub fn run(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::models::common::testing::{dielectric as coat, stack};
     use crate::optics::distribution::Distribution;
     use crate::stack::{Layer, Stack};
-    use crate::transport::Microsurface;
-
-    fn stack(layers: Vec<Layer>) -> Stack {
-        Stack::new(layers, 1.0).unwrap()
-    }
-
-    fn coat(ior: f64, alpha: f64, thickness: f64, sigma_a: f64, sigma_s: f64) -> Layer {
-        Layer::Dielectric {
-            ior: vec![ior],
-            alpha: (alpha, alpha),
-            angle: 0.0,
-            thickness,
-            sigma_a: vec![sigma_a],
-            sigma_s: vec![sigma_s],
-            g: 0.3,
-        }
-    }
 
     fn albedo(s: &Stack, theta: f64, n: u64) -> (f64, f64) {
-        let cs = ChannelStack::new(s, 0, Microsurface::default());
+        let cs = ChannelStack::new(s, 0, crate::models::reference_surface());
         let wi = DVec3::new(theta.sin(), 0.0, theta.cos());
         run(&cs, wi, (0, n), 1, 1, |_| Some(0)).mean_and_stderr()[0]
     }
@@ -539,7 +523,7 @@ mod tests {
     }
 
     fn f_estimate(s: &Stack, wi: DVec3, wo: DVec3, n: u64) -> (f64, f64) {
-        let cs = ChannelStack::new(s, 0, Microsurface::default());
+        let cs = ChannelStack::new(s, 0, crate::models::reference_surface());
         let (sum, sum2, _) = run_f(&cs, wi, wo, (0, n), 5);
         let mean = sum / n as f64;
         (mean, ((sum2 / n as f64 - mean * mean) / (n as f64 - 1.0)).sqrt())
@@ -572,7 +556,7 @@ mod tests {
     #[test]
     fn results_do_not_depend_on_thread_count() {
         let s = stack(vec![coat(1.5, 0.3, 1.0, 0.2, 0.5), Layer::Diffuse { albedo: vec![0.8], roughness: 0.0 }]);
-        let cs = ChannelStack::new(&s, 0, Microsurface::default());
+        let cs = ChannelStack::new(&s, 0, crate::models::reference_surface());
         let wi = DVec3::new(0.5, 0.0, 0.75f64.sqrt());
         let one = rayon::ThreadPoolBuilder::new().num_threads(1).build().unwrap();
         let a = one.install(|| run(&cs, wi, (0, 10_000), 9, 1, |_| Some(0)));

@@ -141,33 +141,6 @@ impl Stack {
     }
 }
 
-impl Stack {
-    /// The one-channel stack of channel `c`'s optical constants (the geometry is every channel's).
-    pub fn channel(&self, c: usize) -> Stack {
-        let one = |v: &[f64]| vec![v[c]];
-        let layers = self
-            .layers
-            .iter()
-            .map(|layer| match layer {
-                Layer::Dielectric { ior, alpha, angle, thickness, sigma_a, sigma_s, g } => Layer::Dielectric {
-                    ior: one(ior),
-                    alpha: *alpha,
-                    angle: *angle,
-                    thickness: *thickness,
-                    sigma_a: one(sigma_a),
-                    sigma_s: one(sigma_s),
-                    g: *g,
-                },
-                Layer::Conductor { ior, k, alpha, angle } => {
-                    Layer::Conductor { ior: one(ior), k: one(k), alpha: *alpha, angle: *angle }
-                }
-                Layer::Diffuse { albedo, roughness } => Layer::Diffuse { albedo: one(albedo), roughness: *roughness },
-            })
-            .collect();
-        Stack { layers, ext_ior: self.ext_ior, channels: 1 }
-    }
-}
-
 /// A layer as the models see it: its optical constants relative to the medium directly above it (per channel).
 pub struct Relative {
     /// η = n_layer / n_above (dielectrics and conductors); for a diffuse base, n_above / n_outside.

@@ -9,17 +9,11 @@ use crate::stack::{Layer, Stack};
 use glam::DVec3;
 
 /// The microsurface of every rough boundary: its distribution and masking-shadowing (the reference's options, which
-/// `model="tabulated"` shares).
+/// `model="tabulated"` shares; models::reference_surface is their defaults).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Microsurface {
     pub distribution: Distribution,
     pub g2: G2Form,
-}
-
-impl Default for Microsurface {
-    fn default() -> Self {
-        Microsurface { distribution: Distribution::Ggx, g2: G2Form::HeightCorrelated }
-    }
 }
 
 /// One interface as a path sees it: roughness and the relative IOR η_below / η_above.

@@ -133,7 +133,7 @@ print(json.dumps({"f": f, "r": r, "warnings": [str(w.message) for w in caught]})
             written = [p for p in cache.rglob("*") if p.is_file()] if cache.is_dir() else []
             out[name] = {
                 "same": run["f"] == writable["f"] and run["r"] == writable["r"],
-                "warnings": run["warnings"],
+                "warnings": [w.replace(str(cache), "$LAMINA_CACHE") for w in run["warnings"]],
                 "left behind": [p.name for p in written if ".tmp-" in p.name],
             }
     return out
@@ -317,7 +317,7 @@ def attempt(key, call):
 light = [lamina.DirectionalLight((0, 0, 1))]
 attempt("too large", lambda: lamina.render(stack, "belcour", width=16384, height=16384, device="gpu", lights=light))
 out["after too large"] = float(lamina.render(stack, "belcour", width=32, height=32, device="gpu", lights=light).mean())
-_lamina.gpu_lose_after(1)
+_lamina._gpu_lose_after(1)
 attempt("lost", lambda: stack.eval(w, w, "belcour", device="gpu"))
 f = stack.eval(w[:1000], w[:1000], "belcour", device="gpu")
 cpu = stack.eval(w[:1000].astype(np.float64), w[:1000].astype(np.float64), "belcour", device="cpu")

@@ -133,22 +133,14 @@ def test_extremes_stay_finite(rng):
 
 
 def test_steinberg_tables():
-    """The tabulated integrals at α = 0 are Fresnel and Snell; the fitted closed forms follow the table within the
-    error measured over every (μ, α, η) node (docs/validation.md; guard: measured + 0.01)."""
+    """The tabulated integrals at α = 0 are Fresnel and Snell. (How far the article's fitted closed forms are from
+    them over every (μ, α, η) node is reported in docs/validation.md, `fit_error`.)"""
     mu = np.linspace(0.05, 1.0, 40)
     eta = np.full_like(mu, 1.5)
     ts = lamina.optics.steinberg_lut(mu, 0.0, eta, "tabulated")
     # Linear interpolation between the 64 μ nodes of the smooth case: 2e-3 (the Snell sine is steep near μ = 1).
     np.testing.assert_allclose(ts[:, 0], 1 - fresnel(mu, 1.5), atol=2e-3)
     np.testing.assert_allclose(ts[:, 1], np.sqrt(1 - mu**2) / 1.5, atol=2e-2)
-    err = fit_error()
-    for key, measured in MEASURED_FIT.items():
-        assert err[key] <= measured + 0.01, (key, err[key])
-
-
-#: Max |fitted − tabulated| over the table nodes with η ≥ 1 and with η < 1 (total internal reflection, whose kink
-#: at the critical angle the erf and exp2 forms cannot follow), measured; docs/validation.md has the full report.
-MEASURED_FIT = {"t_max η≥1": 0.054, "s_max η≥1": 0.078, "t_max η<1": 0.495, "s_max η<1": 0.386}
 
 
 def fit_error() -> dict:
@@ -302,26 +294,21 @@ def precomputed_error(stack: lamina.Stack, rng, n: int = 20000) -> float:
     return float(np.abs(pre - full).sum() / np.abs(full).sum())
 
 
-#: Elek 2010 reports < 6% for his tables. Measured (seed 0): the suite stacks within 0.03%; a polished (α = 0.02)
-#: aluminium base, whose Beckmann peak the 512 u = cos⁸θh nodes under-resolve, 12%. Guards: measured + 0.005.
-MEASURED_PRECOMPUTED = {
-    "gold-clearcoat": 0.0001,
-    "rough-coat-rough-copper": 0.0001,
-    "three-layer": 0.0003,
-    "varnished-diffuse": 0.0001,
-    "polished-aluminium-under-smooth-coat": 0.121,
-}
+#: Elek 2010's figure for his precomputed tables: their error stays under 6%.
+ELEK_BOUND = 0.06
 
 
-@pytest.mark.parametrize("name", sorted(MEASURED_PRECOMPUTED))
-def test_elek_precomputed_tables_stay_close_to_the_full_evaluation(name):
-    stack = (
-        lamina.Stack([lamina.Dielectric(1.5), lamina.materials.metal("Al", 0.02)])
-        if name.startswith("polished")
-        else lamina.materials.suite(name)
-    )
-    err = precomputed_error(stack, np.random.default_rng(0))
-    assert err <= MEASURED_PRECOMPUTED[name] + 0.005, err
+@pytest.mark.parametrize("name", ["gold-clearcoat", "rough-coat-rough-copper", "three-layer", "varnished-diffuse"])
+def test_elek_precomputed_tables_meet_elek_s_bound(name):
+    """Measured (seed 0): within 0.03% on these suite stacks."""
+    assert precomputed_error(lamina.materials.suite(name), np.random.default_rng(0)) < ELEK_BOUND
+
+
+def test_elek_precomputed_tables_miss_elek_s_bound_on_a_polished_metal():
+    """Where the method fails: a polished (α = 0.02) aluminium base, whose Beckmann peak the table's 512 u = cos⁸θh
+    nodes under-resolve, is beyond Elek's 6% (measured 12%)."""
+    stack = lamina.Stack([lamina.Dielectric(1.5), lamina.materials.metal("Al", 0.02)])
+    assert precomputed_error(stack, np.random.default_rng(0)) > ELEK_BOUND
 
 
 @pytest.mark.parametrize("name", ["rough-coat-rough-copper", "three-layer", "frosted-metal", "anisotropic-coat-metal"])
@@ -464,8 +451,8 @@ def test_microfacet_transmission_only_removes_energy_in_belcour(theta):
 
 @pytest.mark.parametrize("model", ["belcour", "steinberg", "weidlich_wilkie"])
 def test_the_improved_variant_is_its_corrections(rng, model):
-    """variant="improved" is the corrections models/options.rs lists for the model, each also an option of its own
-    that overrides the variant when given; "published" is the default."""
+    """variant="improved" is the corrections the model's `variant` option lists (models/common/options.rs), each
+    also an option of its own that overrides the variant when given; "published" is the default."""
     stack = lamina.Stack([lamina.Dielectric(1.5, 0.3), lamina.Diffuse((0.8, 0.5, 0.2))])
     wi, wo = _pairs(rng, 200)
     corrections = {"transport_fit": True}

@@ -12,10 +12,13 @@ __all__ = [
     "MODELS",
     "REFERENCE_MAX_DEPTH",
     "OAT_POISSON_DISC",
+    "OAT_VARIANTS",
+    "OAT_BORDERS",
     "SOURCE_HASH",
     "__version__",
     "belcour_lobes",
     "cache_read",
+    "cache_root",
     "cache_write",
     "check_layer",
     "check_stack",
@@ -28,7 +31,7 @@ __all__ = [
     "fresnel_diffuse_reflectance",
     "fresnel_schlick",
     "gpu_adapter",
-    "gpu_lose_after",
+    "_gpu_lose_after",
     "gpu_models",
     "gpu_resident_seconds",
     "interface_bsdf",
@@ -67,6 +70,8 @@ MODELS: list[str]
 DEVICES: list[str]
 REFERENCE_MAX_DEPTH: int
 OAT_POISSON_DISC: list[list[float]]
+OAT_VARIANTS: list[str]
+OAT_BORDERS: list[str]
 __version__: str
 SOURCE_HASH: str
 
@@ -78,6 +83,7 @@ def use_gpu(
 ) -> bool: ...
 def cache_read(path: str) -> bytes | None: ...
 def cache_write(path: str, payload: bytes) -> None: ...
+def cache_root() -> str | None: ...
 def eval(
     layers: list[dict],
     ext_ior: float,
@@ -210,7 +216,7 @@ def write_png(path: str, image: _Array) -> None: ...
 def write_exr(path: str, image: _Array) -> None: ...
 def gpu_adapter() -> dict[str, str]: ...
 def gpu_models() -> list[str]: ...
-def gpu_lose_after(dispatches: int) -> None: ...
+def _gpu_lose_after(dispatches: int) -> None: ...
 def eval_gpu(
     layers: list[dict], ext_ior: float, model: str, wi: _Array, wo: _Array, options: dict | None = None
 ) -> _Array: ...

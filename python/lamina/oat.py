@@ -1,7 +1,7 @@
 """Oat 2006, "Rendering Gooey Materials with Multiple Layers" (SIGGRAPH 2006 course 26, ch. 4): a semi-transparent
 outer layer over inner layers, rendered by `lamina.render(material=lamina.oat.Material(...))`. The chapter's
 primitives are public (`parallax`, `poisson_filter`, `light_map`), and `radius_from_slab` derives a blur radius
-from a scattering slab, which the chapter leaves as a free parameter. The Rust side is src/render/oat.rs.
+from a scattering slab, which the chapter leaves as a free parameter. The Rust side is src/oat/.
 
 Conventions (docs/conventions.md): textures are images (H, W, C) with row 0 at v = 0 and u along the columns,
 texel (i, j) centred at ((i + ½)/W, (j + ½)/H); tangent space has x along +u, y along +v (down the image) and z out
@@ -19,11 +19,12 @@ import numpy as np
 from . import _lamina
 from .materials import patina_mask
 
-VARIANTS = ("full", "normal_filtered", "vertex_normal")
-BORDERS = ("clamp", "wrap")
+#: The chapter's techniques (src/oat: Technique) and texture addressing (Border), as Rust names them.
+VARIANTS = tuple(_lamina.OAT_VARIANTS)
+BORDERS = tuple(_lamina.OAT_BORDERS)
 #: The chapter's hard-coded texel size (a 1024-texel texture).
 CHAPTER_TEXEL = 1.0 / 1024.0
-#: The 12 unit-disc positions of the growable Poisson disc (Oat 2006, Listing 2), from src/render/oat.rs.
+#: The 12 unit-disc positions of the growable Poisson disc (Oat 2006, Listing 2), from src/oat/mod.rs.
 POISSON_DISC = np.array(_lamina.OAT_POISSON_DISC)
 
 
@@ -247,7 +248,7 @@ def organic_textures(size: int = 512, seed: int = 0) -> dict:
 
 def radius_from_slab(layer, texel_size: float, samples: int = 200_000, seed: int = 0) -> dict:
     """Oat's blur radius from physics: light entering a `lamina.Dielectric` slab (thickness, σs, σa, g; RGB means)
-    at normal incidence is followed by a random walk that tracks positions (src/render/oat.rs, `slab_exit`), and
+    at normal incidence is followed by a random walk that tracks positions (src/oat/mod.rs, `slab_exit`), and
     the radial profile of where it leaves the bottom gives the sideways spread. Returns {"rms": the profile's RMS
     radius in texels (texel_size: scene units per texel), "radius": the 13-tap disc radius with the same RMS,
     "radii" and "weights": the transmitted paths' exit radii (texels) and throughputs, "transmittance": their

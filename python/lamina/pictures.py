@@ -213,7 +213,7 @@ def write_gallery(out="out", *, size: int = 128, spp: int = 32, reference_spp: i
     start = time.perf_counter()
     adapter = _gpu.adapter()
     found = f"{adapter['name']} ({adapter['device_type']})" if adapter else f"none ({_gpu._adapter()[1]})"
-    hardware = adapter is not None and adapter["device_type"] != "Cpu"  # device="auto": lavapipe is not faster
+    hardware = _gpu.use_gpu("auto", None)  # device="auto" renders there (a hardware GPU; lavapipe is not faster)
     device = f"the GPU, {found}" if hardware else f"the CPU ({_threads()} threads; GPU adapter: {found})"
     log(f"lamina gallery: the models render on {device}, the reference and the textured scenes on the CPU.")
     fig, result = gallery(size=size, spp=spp, reference_spp=reference_spp, log=log)

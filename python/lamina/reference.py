@@ -8,7 +8,6 @@ from __future__ import annotations
 import hashlib
 import io
 import json
-import os
 import zipfile
 from pathlib import Path
 
@@ -36,8 +35,10 @@ __all__ = [
 
 
 def cache_dir() -> Path:
-    """Where reference results are cached: $LAMINA_CACHE, else ~/.cache/lamina."""
-    return Path(os.environ.get("LAMINA_CACHE", Path.home() / ".cache" / "lamina")) / "reference"
+    """Where reference results are cached: the reference/ folder of lamina's cache root ($LAMINA_CACHE, else
+    ~/.cache/lamina; src/cache.rs)."""
+    root = _lamina.cache_root()
+    return (Path(root) if root is not None else Path.home() / ".cache" / "lamina") / "reference"
 
 
 def cache_key(stack, wi, wo, samples: int, seed: int, **options) -> str:

@@ -103,9 +103,10 @@ class Stack:
         `tolerance` (relative L1 lobe error, default 0.05) for this stack and these incident directions.
 
         device: "auto" (default) evaluates on a hardware GPU when there is one, the model runs there and the inputs are
-        float32 (so the result is float32 anyway), else on the CPU; "cpu"; "gpu" evaluates on the GPU (wgpu compute
-        shaders, float32 output; lamina.gpu.models() lists the models it has; ValueError for what it does not run,
-        RuntimeError without an adapter). docs/conventions.md states the rule.
+        float32 (so the result is float32 anyway; the GPU computes in float32, about 1e-5 from the CPU), else on the
+        CPU; "cpu"; "gpu" evaluates on the GPU (wgpu compute shaders, float32 output; lamina.gpu.models() lists the
+        models it has; ValueError for what it does not run, RuntimeError without an adapter). docs/conventions.md
+        states the rule.
 
         Models, their options (default, allowed values) and per-element inputs:
         """
@@ -193,13 +194,13 @@ class Stack:
         samples: int = 100_000,
         seed: int = 0,
         progress=None,
-        distribution: str = "ggx",
-        g2: str = "height_correlated",
+        **options,
     ):
         """Monte Carlo ground truth for f(wi, wo): unbiased, with next-event estimation through the stack's delta
         interfaces (see src/reference.rs). wi, wo: (..., 3), broadcast. Returns (f, stderr), each (..., channels).
-        Specular (Dirac) lobes are not part of f. Deterministic for a seed, whatever the thread count."""
-        return self._reference_f(wi, wo, wavelengths, samples, seed, progress, {"distribution": distribution, "g2": g2})
+        Specular (Dirac) lobes are not part of f. Deterministic for a seed, whatever the thread count. Keyword
+        arguments are the reference's options (lamina.models(): the microsurface's `distribution` and `g2`)."""
+        return self._reference_f(wi, wo, wavelengths, samples, seed, progress, options)
 
     def _reference_f(self, wi, wo, wavelengths, samples: int, seed: int, progress, options: dict) -> tuple:
         """`reference` with the reference's options as a dict (checked by Rust against its table)."""
@@ -352,11 +353,11 @@ class Stack:
         samples: int = 1_000_000,
         seed: int = 0,
         progress=None,
-        distribution: str = "ggx",
-        g2: str = "height_correlated",
+        **options,
     ):
         """Brute-force Monte Carlo lobe for light from one direction `wi` (3,): the reflected energy per steradian,
-        i.e. f·cos θo averaged over each of n_theta x n_phi bins uniform in (θo, φo) (delta lobes included).
+        i.e. f·cos θo averaged over each of n_theta x n_phi bins uniform in (θo, φo) (delta lobes included). Keyword
+        arguments are the reference's options, as for `reference`.
 
         Returns (f_cos, stderr, (theta_edges, phi_edges)) with f_cos and stderr of shape (n_theta, n_phi, channels)
         and edges in radians. bins: two positive integers with n_theta x n_phi at most 2**22."""
@@ -381,7 +382,7 @@ class Stack:
             seed,
             bins=(n_theta, n_phi),
             progress=progress,
-            options={"distribution": distribution, "g2": g2},
+            options=options,
         )
         te = np.linspace(0, np.pi / 2, n_theta + 1)
         pe = np.linspace(0, 2 * np.pi, n_phi + 1)

@@ -3,9 +3,10 @@
 //! `cargo test` validates every composed shader with naga, without a GPU; tests/test_gpu.py checks parity with the
 //! CPU on a real adapter (lavapipe in CI).
 //!
-//! Models on the GPU: `microfacet`, `steinberg`, `weidlich_wilkie` and `albedo_scaling` (every option; the last
-//! three read shaders/layers.wgsl's layers, the single-pass models walk them in shaders/single_pass.wgsl) and
-//! `belcour` (tabulated, every other option). Per-element inputs (car-paint flakes, the patina mask) run on the CPU
+//! Models on the GPU: `microfacet`, `steinberg`, `weidlich_wilkie` and `albedo_scaling` (every option but
+//! `transport_fit`; the last three read shaders/layers.wgsl's layers, the single-pass models walk them in
+//! shaders/single_pass.wgsl) and `belcour` (interpolated, every other option but `transport_fit`); `refusal` says
+//! what does not run here. Per-element inputs (car-paint flakes, the patina mask) run on the CPU
 //! only. A model is prepared once per stack and options and kept, with its arrays on the device (`cached_kernel`); the tables
 //! that every stack shares are uploaded once (`table`). Inputs of any length are split into dispatches of at most
 //! CHUNK pairs. A batch of stacks renders in one dispatch (`batched`). The renderer (`render`, shaders/scene.wgsl and render.wgsl) renders stacks
@@ -188,7 +189,8 @@ const NO_ADAPTER: &str = "no GPU adapter found through wgpu (Vulkan). Install a 
     machine without one, Mesa's lavapipe (Debian/Ubuntu: apt install mesa-vulkan-drivers) is a CPU adapter";
 
 /// The process's GPU, created on first use (the best adapter: a discrete or integrated GPU before a CPU one) and again
-/// after it is lost. Without an adapter, the error says how to get one (and stays: adapters do not appear).
+/// after it is lost. Without an adapter, the error says how to get one, and stays (adapters do not appear); a device
+/// the adapter refused is asked for again on the next call.
 pub fn gpu() -> Result<Arc<Gpu>> {
     static GPU: Mutex<Option<std::result::Result<Arc<Gpu>, String>>> = Mutex::new(None);
     let mut slot = GPU.lock().unwrap_or_else(|e| e.into_inner());
@@ -198,7 +200,10 @@ pub fn gpu() -> Result<Arc<Gpu>> {
         _ => {}
     }
     let created = pollster::block_on(create()).map(Arc::new);
-    *slot = Some(created.clone());
+    match &created {
+        Err(why) if why != NO_ADAPTER => *slot = None,
+        _ => *slot = Some(created.clone()),
+    }
     created.map_err(Error::Device)
 }
 
@@ -438,7 +443,7 @@ pub fn steinberg_kernel(p: &steinberg::Prepared) -> Kernel {
         g2_code(walk.g2),
         fresnel_code(walk.fresnel),
         walk.eta2 as u32,
-        p.fitted as u32,
+        p.opts.fitted as u32,
         N_MU as u32,
         N_ALPHA as u32,
         N_ETA as u32,
@@ -446,7 +451,7 @@ pub fn steinberg_kernel(p: &steinberg::Prepared) -> Kernel {
         (ETA_MAX as f32).to_bits(),
         fresnel_samples,
         0, // the layers' offset
-        p.microfacet_transmission as u32,
+        p.opts.microfacet_transmission as u32,
         0,
     ];
     Kernel {

@@ -76,7 +76,7 @@ impl Options {
 }
 
 pub struct Prepared {
-    /// The stack as the single-pass models see it (models/single_pass.rs), roughened.
+    /// The stack as the single-pass models see it (models/common/single_pass.rs), roughened.
     pub layers: Vec<SpLayer>,
     pub g2: G2Form,
     pub reciprocal: bool,

@@ -25,7 +25,8 @@ pub use common::options::{Args, OptionKind, OptionSpec, Value};
 use crate::error::{py, py_list, value_error, Result};
 use crate::optics::distribution::Microfacet;
 use crate::stack::Stack;
-use common::options::{DISTRIBUTION, G2};
+use crate::transport::Microsurface;
+use common::options::{microsurface, DISTRIBUTION, G2};
 use glam::DVec3;
 use std::sync::{Arc, Mutex};
 
@@ -129,22 +130,33 @@ pub fn info(name: &str) -> Result<&'static ModelInfo> {
     })
 }
 
-/// `name`'s entry and its options from the values given, each checked against its table; an option it does not take
-/// is a TypeError listing its options and per-element inputs (the one such check: Python asks it).
+/// `name`'s entry and its options from the values given, each checked against its table (Args::parse).
 pub fn parse(name: &str, given: &[(String, Value)]) -> Result<(&'static ModelInfo, Args)> {
     let info = info(name)?;
-    if let Some((key, _)) = given.iter().find(|(k, _)| !info.options.iter().any(|s| s.name == k)) {
-        let options: Vec<&str> = info.options.iter().map(|s| s.name).collect();
-        let inputs: Vec<&str> = info.inputs.iter().map(|s| s.name).collect();
-        return crate::error::type_error(format!(
-            "model {} has no option {}; its options are {} and its per-element inputs {}",
-            py(name),
-            py(key),
-            py_list(&options),
-            py_list(&inputs)
-        ));
+    Ok((info, Args::parse(info, given)?))
+}
+
+impl ModelInfo {
+    /// The index of per-element input `name` among the model's inputs, or a TypeError listing them.
+    pub fn input(&self, name: &str) -> Result<usize> {
+        self.inputs.iter().position(|s| s.name == name).ok_or_else(|| {
+            let names: Vec<&str> = self.inputs.iter().map(|s| s.name).collect();
+            crate::error::Error::Type(format!(
+                "model {} has no per-element input {}; its inputs are {}",
+                py(self.name),
+                py(name),
+                py_list(&names)
+            ))
+        })
     }
-    Ok((info, Args::parse(name, info.options, given)?))
+}
+
+/// The microsurface of the reference's defaults (`REFERENCE`'s options), which transport_fit solves with.
+pub fn reference_surface() -> Microsurface {
+    match microsurface(&Args::defaults(REFERENCE.options)) {
+        Ok(surface) => surface,
+        Err(_) => unreachable!("the reference's defaults are among its choices"),
+    }
 }
 
 /// How many prepared models `prepare` keeps (most recently used first).

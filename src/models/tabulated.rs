@@ -251,7 +251,7 @@ mod tests {
     }
 
     fn model(layers: Vec<Layer>) -> Prepared {
-        tabulate_stack(&Stack::new(layers, 1.0).unwrap(), Microsurface::default()).unwrap()
+        tabulate_stack(&Stack::new(layers, 1.0).unwrap(), crate::models::reference_surface()).unwrap()
     }
 
     fn dir(theta_deg: f64, phi_deg: f64) -> DVec3 {

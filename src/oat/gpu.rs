@@ -1,4 +1,4 @@
-//! Oat 2006's gooey layers on the GPU (shaders/oat.wgsl, mirroring render/oat.rs), under directional and point
+//! Oat 2006's gooey layers on the GPU (oat.wgsl, mirroring src/oat/mod.rs), under directional and point
 //! lights, in float32; all materials in one submission. On the sphere and the plane, per material one dispatch
 //! lights the texture-space light map over the shape's uv chart (variant "full") and one shades every pixel. On a
 //! mesh (shaders/mesh.wgsl, raster.wgsl), a render pass rasterizes it through the camera into a visibility target

@@ -56,6 +56,19 @@ pub enum Technique {
     VertexNormal,
 }
 
+impl Technique {
+    /// The names `from_str` reads (Python's `variant=` of lamina.oat.Material), in the order of `ALL`.
+    pub const NAMES: [&'static str; 3] = ["full", "normal_filtered", "vertex_normal"];
+    pub const ALL: [Technique; 3] = [Technique::Full, Technique::NormalFiltered, Technique::VertexNormal];
+}
+
+impl std::str::FromStr for Technique {
+    type Err = crate::error::Error;
+    fn from_str(s: &str) -> crate::error::Result<Self> {
+        crate::error::parse_choice("variant", s, &Self::NAMES, &Self::ALL)
+    }
+}
+
 pub struct InnerLayer {
     pub albedo: Texture,
     /// None for the deepest layer, which is opaque.

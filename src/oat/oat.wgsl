@@ -1,4 +1,4 @@
-// Oat 2006's gooey layers on the GPU, mirroring src/render/oat.rs function by function: the texture-space light
+// Oat 2006's gooey layers on the GPU, mirroring src/oat/mod.rs function by function: the texture-space light
 // map (one thread per texel of the sphere's or the plane's uv chart) and the composite (one thread per pixel).
 // Composed after optics.wgsl and scene.wgsl. Textures live in one float array, described by (offset, width,
 // height, comps) rows; the light map is one of them, written by `light_map` before `shade` reads it.

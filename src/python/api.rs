@@ -150,13 +150,7 @@ fn given_inputs<'a, 'py>(
     let mut slot = vec![None; info.inputs.len()];
     for (k, v) in inputs.into_iter().flat_map(|d| d.iter()) {
         let key: String = k.extract()?;
-        let Some(j) = info.inputs.iter().position(|s| s.name == key) else {
-            let names: Vec<&str> = info.inputs.iter().map(|s| s.name).collect();
-            return Err(PyTypeError::new_err(format!(
-                "model {:?} has no per-element input {key:?}; its inputs are {names:?}",
-                info.name
-            )));
-        };
+        let j = info.input(&key)?;
         let spec = info.inputs[j];
         slot[j] = Some(first + arrays.len());
         arrays.push((key, v, Kind::Range(spec.width, spec.range.0, spec.range.1)));
@@ -196,6 +190,7 @@ fn call<'a, 'py>(
 #[pyfunction]
 #[pyo3(signature = (device, model=None, options=None, inputs=false, float32=true))]
 pub fn use_gpu(
+    py: Python<'_>,
     device: &str,
     model: Option<&str>,
     options: Option<&Bound<'_, PyDict>>,
@@ -207,7 +202,8 @@ pub fn use_gpu(
         let (m, (_, args)) = (model?, args.as_ref()?);
         gpu_refusal(m, args, inputs)
     };
-    Ok(crate::device::choose(device, refusal, float32)?)
+    // The first call may create the GPU's device (seconds): without Python's lock.
+    Ok(py.detach(|| crate::device::choose(device, refusal, float32))?)
 }
 
 #[cfg(feature = "gpu")]
@@ -225,10 +221,18 @@ pub fn cache_read<'py>(py: Python<'py>, path: std::path::PathBuf) -> Option<Boun
     crate::cache::read(&path).map(|payload| pyo3::types::PyBytes::new(py, &payload))
 }
 
-/// Writes `payload` as lamina's cache entry at `path`, atomically (src/cache.rs).
+/// Writes `payload` as lamina's cache entry at `path`, atomically (src/cache.rs); a cache that cannot be written
+/// warns (once per process).
 #[pyfunction]
-pub fn cache_write(path: std::path::PathBuf, payload: &[u8]) {
-    crate::cache::write(&path, payload)
+pub fn cache_write(py: Python<'_>, path: std::path::PathBuf, payload: &[u8]) {
+    crate::cache::write(&path, payload);
+    super::warn_pending(py);
+}
+
+/// The root of lamina's cache ($LAMINA_CACHE, else ~/.cache/lamina), or None without either.
+#[pyfunction]
+pub fn cache_root() -> Option<std::path::PathBuf> {
+    crate::cache::root()
 }
 
 /// The catalogue: one dict per model (name, summary, options, inputs, properties).

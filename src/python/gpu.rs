@@ -27,7 +27,7 @@ pub fn gpu_adapter(py: Python<'_>) -> PyResult<Bound<'_, PyDict>> {
 /// Fault injection for lamina's tests (tests/faults.py): the GPU destroys itself after `dispatches` more dispatches,
 /// as a lost device would stop.
 #[pyfunction]
-pub fn gpu_lose_after(dispatches: i64) -> PyResult<()> {
+pub fn _gpu_lose_after(dispatches: i64) -> PyResult<()> {
     gpu::lose_after(dispatches).map_err(|e| PyRuntimeError::new_err(e.to_string()))
 }
 

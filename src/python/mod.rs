@@ -15,16 +15,16 @@ mod render;
 
 use pyo3::prelude::*;
 
-/// A warning of lamina's core (the cache's), as a Python UserWarning.
-fn warn(message: &str) {
-    Python::attach(|py| {
-        let category = py.get_type::<pyo3::exceptions::PyUserWarning>();
-        let message = std::ffi::CString::new(message.replace('\0', " ")).unwrap_or_default();
-        // Under a warnings filter of "error" the warning cannot be raised from here (the work goes on): it is shown.
-        if let Err(e) = PyErr::warn(py, &category, &message, 1) {
-            e.print(py);
-        }
-    });
+/// Issues the cache's pending warning (src/cache.rs), if any, as a Python UserWarning: after work that may have written
+/// the cache, with Python's lock held.
+pub fn warn_pending(py: Python<'_>) {
+    let Some(message) = crate::cache::take_warning() else { return };
+    let category = py.get_type::<pyo3::exceptions::PyUserWarning>();
+    let message = std::ffi::CString::new(message.replace('\0', " ")).unwrap_or_default();
+    // Under a warnings filter of "error" the warning cannot be raised from here (the work is done): it is shown.
+    if let Err(e) = PyErr::warn(py, &category, &message, 1) {
+        e.print(py);
+    }
 }
 
 #[pymodule]
@@ -36,13 +36,15 @@ fn _lamina(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add("SOURCE_HASH", crate::SOURCE_HASH)?;
     m.add("REFERENCE_MAX_DEPTH", crate::reference::MAX_DEPTH)?;
     m.add("OAT_POISSON_DISC", crate::oat::POISSON_DISC.to_vec())?;
+    m.add("OAT_VARIANTS", crate::oat::Technique::NAMES.to_vec())?;
+    m.add("OAT_BORDERS", crate::render::Border::NAMES.to_vec())?;
     m.add_function(wrap_pyfunction!(api::check_layer, m)?)?;
     m.add_function(wrap_pyfunction!(api::check_stack, m)?)?;
     m.add_function(wrap_pyfunction!(api::catalogue, m)?)?;
     m.add_function(wrap_pyfunction!(api::use_gpu, m)?)?;
     m.add_function(wrap_pyfunction!(api::cache_read, m)?)?;
     m.add_function(wrap_pyfunction!(api::cache_write, m)?)?;
-    crate::cache::set_warn(warn);
+    m.add_function(wrap_pyfunction!(api::cache_root, m)?)?;
     m.add_function(wrap_pyfunction!(api::eval, m)?)?;
     m.add_function(wrap_pyfunction!(api::sample_stack, m)?)?;
     m.add_function(wrap_pyfunction!(api::pdf, m)?)?;
@@ -67,7 +69,7 @@ fn _lamina(m: &Bound<'_, PyModule>) -> PyResult<()> {
     {
         m.add_function(wrap_pyfunction!(gpu::gpu_adapter, m)?)?;
         m.add_function(wrap_pyfunction!(gpu::gpu_models, m)?)?;
-        m.add_function(wrap_pyfunction!(gpu::gpu_lose_after, m)?)?;
+        m.add_function(wrap_pyfunction!(gpu::_gpu_lose_after, m)?)?;
         m.add_function(wrap_pyfunction!(gpu::eval_gpu, m)?)?;
         m.add_function(wrap_pyfunction!(gpu::sample_gpu, m)?)?;
         m.add_function(wrap_pyfunction!(gpu::pdf_gpu, m)?)?;

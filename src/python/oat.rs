@@ -11,14 +11,6 @@ use pyo3::prelude::*;
 use rayon::prelude::*;
 use std::sync::Arc;
 
-fn border(name: &str) -> PyResult<Border> {
-    match name {
-        "clamp" => Ok(Border::Clamp),
-        "wrap" => Ok(Border::Wrap),
-        _ => Err(PyValueError::new_err(format!("border must be 'clamp' or 'wrap', got {name:?}"))),
-    }
-}
-
 fn lights(items: Vec<(String, [f64; 3], [f64; 3])>) -> PyResult<Vec<Light>> {
     items.iter().map(|(k, v, rgb)| super::render::light(k, *v, *rgb)).collect()
 }
@@ -58,7 +50,7 @@ pub fn oat_poisson_filter<'py>(
     texel: [f64; 2],
     border: &str,
 ) -> PyResult<Bound<'py, PyAny>> {
-    let (image, border) = (texture(image)?, self::border(border)?);
+    let (image, border) = (texture(image)?, border.parse::<Border>()?);
     let (uv, r) = (uv.as_slice()?, radius.as_slice()?);
     let c = image.comps;
     let mut out = vec![0.0; r.len() * c];
@@ -129,16 +121,7 @@ impl OatMaterial {
         dilate: usize,
         light_map: Option<PyReadonlyArray3<'_, f64>>,
     ) -> PyResult<Self> {
-        let technique = match variant {
-            "full" => Technique::Full,
-            "normal_filtered" => Technique::NormalFiltered,
-            "vertex_normal" => Technique::VertexNormal,
-            _ => {
-                return Err(PyValueError::new_err(format!(
-                    "variant must be 'full', 'normal_filtered' or 'vertex_normal', got {variant:?}"
-                )))
-            }
-        };
+        let technique: Technique = variant.parse()?;
         let inner = inner
             .into_iter()
             .map(|(albedo, opacity, depth)| {
@@ -156,7 +139,7 @@ impl OatMaterial {
             inner,
             technique,
             shadowing,
-            border: self::border(border)?,
+            border: border.parse::<Border>()?,
             texel,
             dilate,
         };

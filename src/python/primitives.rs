@@ -16,12 +16,9 @@ pub fn steinberg_lut<'py>(
     eta: &Bound<'py, PyAny>,
     lut: &str,
 ) -> PyResult<Bound<'py, PyAny>> {
-    let fitted = match lut {
-        "tabulated" => false,
-        "fitted" => true,
-        _ => return Err(PyValueError::new_err(format!("lut must be 'tabulated' or 'fitted', got {lut:?}"))),
-    };
-    let table = crate::tables::steinberg::steinberg();
+    let fitted = crate::error::parse_choice("lut", lut, &crate::models::steinberg::LUTS, &[false, true])?;
+    let table = py.detach(crate::tables::steinberg::steinberg);
+    super::warn_pending(py);
     let inputs = [("mu", mu, Kind::Values(1)), ("alpha", alpha, Kind::Values(1)), ("eta", eta, Kind::Values(1))];
     batch(py, &inputs, 2, |r, o| {
         let (mu, alpha, eta) = (r[0][0], r[1][0], r[2][0]);

@@ -119,10 +119,7 @@ pub fn render<'py>(
             let (p, info) = prepared_model(py, &stack, model, options)?;
             let mut slots: Vec<Option<Texture>> = info.inputs.iter().map(|_| None).collect();
             for (name, a) in textures.into_iter().flat_map(|d| d.iter()) {
-                let name: String = name.extract()?;
-                let Some(j) = info.inputs.iter().position(|s| s.name == name) else {
-                    return Err(PyTypeError::new_err(format!("model {model:?} has no per-element input {name:?}")));
-                };
+                let j = info.input(&name.extract::<String>()?)?;
                 slots[j] = Some(texture(a.extract()?)?);
             }
             p.check_inputs(&slots.iter().map(|s| s.is_some()).collect::<Vec<_>>())?;

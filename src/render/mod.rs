@@ -27,6 +27,7 @@ use env::Environment;
 use glam::DVec3;
 use mesh::Mesh;
 use rayon::prelude::*;
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 
 /// What the camera looks at.
@@ -60,6 +61,19 @@ pub enum Light {
 pub enum Border {
     Clamp,
     Wrap,
+}
+
+impl Border {
+    /// The names `from_str` reads, in the order of `ALL`.
+    pub const NAMES: [&'static str; 2] = ["clamp", "wrap"];
+    pub const ALL: [Border; 2] = [Border::Clamp, Border::Wrap];
+}
+
+impl std::str::FromStr for Border {
+    type Err = crate::error::Error;
+    fn from_str(s: &str) -> Result<Self> {
+        crate::error::parse_choice("border", s, &Self::NAMES, &Self::ALL)
+    }
 }
 
 /// Values over the surface, looked up by uv: u along the columns, v along the rows (row 0 at v = 0), texel (i, j)
@@ -295,8 +309,10 @@ fn shade(scene: &Scene, shader: &Shader, hit: &Hit, wo_world: DVec3, rng: &mut R
 pub fn render_rows(scene: &Scene, shaders: &[Shader], first: usize, out: &mut [f32]) -> Result<()> {
     let w = scene.width;
     let rows = out.len() / (shaders.len().max(1) * 3 * w);
+    let stopped = AtomicBool::new(false);
     out.par_chunks_mut(3 * w).enumerate().for_each(|(r, line)| {
         if crate::interrupt::requested() {
+            stopped.store(true, Ordering::Relaxed); // rows are missing: the render is Interrupted
             return;
         }
         let (k, j) = (r / rows, first + r % rows);
@@ -312,5 +328,8 @@ pub fn render_rows(scene: &Scene, shaders: &[Shader], first: usize, out: &mut [f
             px.iter_mut().zip(rgb).for_each(|(p, v)| *p = v as f32);
         }
     });
-    crate::interrupt::check()
+    if stopped.load(Ordering::Relaxed) {
+        return Err(crate::error::Error::Interrupted);
+    }
+    Ok(())
 }

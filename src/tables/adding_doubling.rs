@@ -26,6 +26,7 @@ use crate::transport::{Base, ChannelStack, Microsurface};
 use glam::DVec3;
 use rayon::prelude::*;
 use std::f64::consts::PI;
+use std::sync::atomic::{AtomicBool, Ordering};
 
 /// Zenith cells over [0, π/2], of equal Δx in x = √(1 − cos θ).
 pub const N_THETA: usize = 64;
@@ -365,17 +366,18 @@ fn base(cells: &Cells, s: &ChannelStack) -> Op {
     }
 }
 
-/// The operators of slab i: None when it does nothing (no thickness or no extinction).
-fn slab(cells: &Cells, s: &ChannelStack, i: usize) -> Option<Operators> {
+/// The operators of slab i: None when it does nothing (no thickness or no extinction); Interrupted when asked to
+/// stop during its doublings.
+fn slab(cells: &Cells, s: &ChannelStack, i: usize) -> Result<Option<Operators>> {
     let sl = &s.slabs[i];
     let tau = (sl.sigma_a + sl.sigma_s) * sl.thickness;
     if tau == 0.0 {
-        return None;
+        return Ok(None);
     }
     if sl.sigma_s == 0.0 {
         let t = every_order(diagonal(|j| cells.average(j, |mu| (-tau / mu).exp())));
         let r = every_order(zeros());
-        return Some(Operators { r_top: r.clone(), r_bottom: r, t_down: t.clone(), t_up: t });
+        return Ok(Some(Operators { r_top: r.clone(), r_bottom: r, t_down: t.clone(), t_up: t }));
     }
     // A thin layer of single scattering: L_o = (Δτ ω / μ_o) ∫ p L dω (both sides alike: the phase function is
     // symmetric), each column's scattered energy made exactly Δτ ω ⟨1/μ_j⟩ (the discrete phase function integrates
@@ -394,6 +396,7 @@ fn slab(cells: &Cells, s: &ChannelStack, i: usize) -> Option<Operators> {
         }
     }
     let direct = diagonal(|j| cells.average(j, |mu| (-dtau / mu).exp()));
+    let stopped = AtomicBool::new(false);
     let (r, t): (Op, Op) = back
         .into_par_iter()
         .zip(forward)
@@ -401,7 +404,8 @@ fn slab(cells: &Cells, s: &ChannelStack, i: usize) -> Option<Operators> {
             let mut t = add(&direct, &f);
             for _ in 0..doublings {
                 if crate::interrupt::requested() {
-                    break; // the solve returns Interrupted at its next check, and this operator is dropped
+                    stopped.store(true, Ordering::Relaxed); // this operator is incomplete: the slab is Interrupted
+                    break;
                 }
                 // Two copies of the layer: R' = R + T (I − R R)⁻¹ R T, T' = T (I − R R)⁻¹ T.
                 let x = solve_one_minus(&mul(&r, &r), &t);
@@ -411,7 +415,10 @@ fn slab(cells: &Cells, s: &ChannelStack, i: usize) -> Option<Operators> {
             (r, t)
         })
         .unzip();
-    Some(Operators { r_top: r.clone(), r_bottom: r, t_down: t.clone(), t_up: t })
+    if stopped.load(Ordering::Relaxed) {
+        return Err(crate::error::Error::Interrupted);
+    }
+    Ok(Some(Operators { r_top: r.clone(), r_bottom: r, t_down: t.clone(), t_up: t }))
 }
 
 /// Layer `a` over a stack of reflection `r` (order by order): a.R_top + a.T_up (I − R a.R_bottom)⁻¹ R a.T_down,
@@ -441,8 +448,7 @@ fn reflection_below_top(cells: &Cells, s: &ChannelStack) -> Result<Op> {
     let mut r = base(cells, s);
     for i in (0..n).rev() {
         crate::interrupt::check()?;
-        if let Some(sl) = slab(cells, s, i) {
-            crate::interrupt::check()?;
+        if let Some(sl) = slab(cells, s, i)? {
             r = over(&sl, r, true);
         }
         r = over(&interface(cells, s, i), r, i > 0);
@@ -527,6 +533,7 @@ fn channel_key(stack: &Stack, c: usize) -> Vec<f64> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::models::common::testing::dielectric;
     use crate::stack::Layer;
 
     /// The energy leaving every column of an operator (order 0), light from each incident cell.
@@ -535,7 +542,7 @@ mod tests {
     }
 
     fn channel(layers: Vec<Layer>) -> ChannelStack {
-        ChannelStack::new(&Stack::new(layers, 1.0).unwrap(), 0, Microsurface::default())
+        ChannelStack::new(&Stack::new(layers, 1.0).unwrap(), 0, crate::models::reference_surface())
     }
 
     fn slab_layer(sigma_a: f64, sigma_s: f64, thickness: f64, g: f64) -> Layer {
@@ -584,7 +591,7 @@ mod tests {
         let cells = Cells::new();
         for (tau, g) in [(0.1, 0.0), (1.0, -0.3), (4.0, 0.6)] {
             let s = channel(vec![slab_layer(0.0, tau, 1.0, g), Layer::Diffuse { albedo: vec![0.0], roughness: 0.0 }]);
-            let ops = slab(&cells, &s, 0).unwrap();
+            let ops = slab(&cells, &s, 0).unwrap().unwrap();
             for (r, t) in energies(&cells, &ops.r_top).iter().zip(energies(&cells, &ops.t_down)) {
                 assert!((r + t - 1.0).abs() < 5e-4, "τ = {tau}, g = {g}: R + T = {}", r + t);
             }
@@ -596,7 +603,7 @@ mod tests {
         // σs = 0: no reflection, and each cell transmits its average of e^{−τ/μ} straight down.
         let cells = Cells::new();
         let s = channel(vec![slab_layer(0.8, 0.0, 0.5, 0.0), Layer::Diffuse { albedo: vec![0.0], roughness: 0.0 }]);
-        let ops = slab(&cells, &s, 0).unwrap();
+        let ops = slab(&cells, &s, 0).unwrap().unwrap();
         let t = energies(&cells, &ops.t_down);
         for (j, t) in t.iter().enumerate() {
             let exact = cells.average(j, |mu| (-0.4 / mu).exp());
@@ -610,18 +617,8 @@ mod tests {
         // the reflected one's Gauss average: measured 3.7e-5 at most up to 60°, 5.9e-3 in the last cell (89.3°),
         // where F is steepest; R + T is above 1 everywhere (the midpoint underestimates the convex F).
         let cells = Cells::new();
-        let s = channel(vec![
-            Layer::Dielectric {
-                ior: vec![1.5],
-                alpha: (0.0, 0.0),
-                angle: 0.0,
-                thickness: 0.0,
-                sigma_a: vec![0.0],
-                sigma_s: vec![0.0],
-                g: 0.0,
-            },
-            Layer::Diffuse { albedo: vec![0.0], roughness: 0.0 },
-        ]);
+        let s =
+            channel(vec![dielectric(1.5, 0.0, 0.0, 0.0, 0.0), Layer::Diffuse { albedo: vec![0.0], roughness: 0.0 }]);
         let ops = interface(&cells, &s, 0);
         let (r, t) = (energies(&cells, &ops.r_top), energies(&cells, &ops.t_down));
         for j in 0..N_THETA {

@@ -1,4 +1,4 @@
-// The single-pass layers on the GPU (src/models/single_pass.rs): the stack's interfaces, slabs and base, their
+// The single-pass layers on the GPU (src/models/common/single_pass.rs): the stack's interfaces, slabs and base, their
 // Fresnel terms and the slabs' refraction and Beer–Lambert attenuation, shared by the single-pass walk
 // (single_pass.wgsl) and albedo scaling. Composed after optics.wgsl and before the model's shader, which declares
 // `params` (channels, fresnel, fresnel_samples, layers_base).

@@ -1,4 +1,4 @@
-// The walk shared by the single-pass models on the GPU (Walk in src/models/single_pass.rs), here for one channel at a
+// The walk shared by the single-pass models on the GPU (Walk in src/models/common/single_pass.rs), here for one channel at a
 // time: at each interface its specular lobe weighted by the attenuation above, then the model's passage into the slab
 // below with its Beer–Lambert attenuation and scattered light, down to the opaque base. Composed after layers.wgsl
 // and before the model's shader, which declares `params` (also layers, g2 and eta2) and the model's `lobe` and

@@ -317,26 +317,12 @@ fn symmetric_cosine(wi: DVec3, wo: DVec3) -> f64 {
 mod tests {
     use super::table::{direction_of_pseudo_angle, pseudo_angle};
     use super::*;
+    use crate::models::common::testing;
     use crate::tables;
 
     #[test]
     fn smooth_coat_over_lambert_is_the_closed_form() {
-        let stack = Stack::new(
-            vec![
-                Layer::Dielectric {
-                    ior: vec![1.5],
-                    alpha: (0.0, 0.0),
-                    angle: 0.0,
-                    thickness: 0.0,
-                    sigma_a: vec![0.0],
-                    sigma_s: vec![0.0],
-                    g: 0.0,
-                },
-                Layer::Diffuse { albedo: vec![0.7], roughness: 0.0 },
-            ],
-            1.0,
-        )
-        .unwrap();
+        let stack = testing::stack(vec![testing::dielectric(1.5, 0.0, 0.0, 0.0, 0.0), testing::lambert(0.7)]);
         let p = prepare(&stack, &Options { interpolated: false, ..Options::default() }).unwrap();
         let f_int = crate::optics::fresnel::diffuse_reflectance(1.0 / 1.5);
         for (wi, wo) in [(DVec3::new(0.3, 0.1, 0.9), DVec3::new(-0.6, 0.2, 0.5)), (DVec3::new(0.9, 0.0, 0.2), DVec3::Z)]

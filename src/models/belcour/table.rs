@@ -133,7 +133,7 @@ impl Prepared {
 }
 
 impl Prepared {
-    /// `eval` for a block of columns (see models::Evaluator::eval_block). A tabulated stack runs in passes over the
+    /// `eval` for a block of columns (see Model::eval_block). A tabulated stack runs in passes over the
     /// block: table corners per row; the records of all lobes interpolated per row (contiguous reads); then per lobe
     /// its roughness (eigen-decomposed for anisotropic stacks), its GGX shape (a branch-free loop that vectorizes)
     /// and its energies per channel; then the diffuse base. Without a table, row by row.

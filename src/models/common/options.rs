@@ -4,6 +4,7 @@
 //! `lamina.models()`, `Stack.eval`'s docstring, the README and each model's `//!` parameter table show.
 
 use crate::error::{py, py_list, type_error, value_error, Error, Result};
+use crate::models::ModelInfo;
 use crate::optics::distribution::{Distribution, G2Form};
 use crate::optics::fresnel::FresnelForm;
 use crate::transport::Microsurface;
@@ -112,15 +113,23 @@ pub struct Args {
 }
 
 impl Args {
-    /// The options of `model` from its table `specs`: the defaults, then `given`, each checked against the table;
-    /// an option the model does not take is a TypeError that lists the ones it does.
-    pub fn parse(model: &str, specs: &[OptionSpec], given: &[(String, Value)]) -> Result<Args> {
+    /// The options of catalogue entry `info` from its table: the defaults, then `given`, each checked against the
+    /// table; an option the model does not take is a TypeError that lists its options and per-element inputs (the one
+    /// such check: Python asks it).
+    pub fn parse(info: &ModelInfo, given: &[(String, Value)]) -> Result<Args> {
+        let specs = info.options;
         let mut values = Args::defaults(specs).values;
         for (key, value) in given {
             let Some(k) = specs.iter().position(|s| s.name == key) else {
-                let names: Vec<&str> = specs.iter().map(|s| s.name).collect();
-                let (model, key, names) = (py(model), py(key), py_list(&names));
-                return type_error(format!("model {model} has no option {key}; its options are {names}"));
+                let options: Vec<&str> = specs.iter().map(|s| s.name).collect();
+                let inputs: Vec<&str> = info.inputs.iter().map(|s| s.name).collect();
+                return type_error(format!(
+                    "model {} has no option {}; its options are {} and its per-element inputs {}",
+                    py(info.name),
+                    py(key),
+                    py_list(&options),
+                    py_list(&inputs)
+                ));
             };
             specs[k].check(value)?;
             values[k].1 = value.clone();
@@ -296,22 +305,22 @@ mod tests {
     #[test]
     fn every_option_takes_its_default_and_its_other_values_and_nothing_else() {
         for info in CATALOGUE {
-            let defaults = Args::parse(info.name, info.options, &[]).unwrap();
+            let defaults = Args::parse(info, &[]).unwrap();
             for spec in info.options {
                 // Its default, given, is a valid value that changes nothing.
                 let given = [(spec.name.to_string(), spec.default())];
-                assert_eq!(Args::parse(info.name, info.options, &given).unwrap(), defaults, "{}", spec.name);
+                assert_eq!(Args::parse(info, &given).unwrap(), defaults, "{}", spec.name);
                 // Every other value reaches the option.
                 for v in others(spec) {
                     let given = [(spec.name.to_string(), v.clone())];
-                    let args = Args::parse(info.name, info.options, &given).unwrap();
+                    let args = Args::parse(info, &given).unwrap();
                     assert_eq!(args.get(spec.name), Some(&v), "{}.{}", info.name, spec.name);
                 }
             }
             // An option of another model's table that this one lacks is a TypeError naming it.
             for other in CATALOGUE.iter().flat_map(|m| m.options) {
                 if !info.options.iter().any(|s| s.name == other.name) {
-                    let err = Args::parse(info.name, info.options, &[(other.name.into(), other.default())]);
+                    let err = Args::parse(info, &[(other.name.into(), other.default())]);
                     assert!(
                         matches!(&err, Err(Error::Type(m)) if m.contains(&format!("has no option '{}'", other.name))),
                         "{}: {err:?}",
@@ -324,8 +333,11 @@ mod tests {
 
     #[test]
     fn values_outside_an_option_range_are_refused_by_kind() {
-        let specs = [DISTRIBUTION, number("x", 0.0, 1.0, 0.5, "a number"), ETA2];
-        let parse = |k: &str, v: Value| Args::parse("m", &specs, &[(k.into(), v)]);
+        const SPECS: &[OptionSpec] = &[DISTRIBUTION, number("x", 0.0, 1.0, 0.5, "a number"), ETA2];
+        let properties =
+            crate::models::Properties { reciprocal: true, energy_conserving: true, anisotropic: true, spectral: true };
+        let info = ModelInfo { options: SPECS, properties, ..crate::models::REFERENCE };
+        let parse = |k: &str, v: Value| Args::parse(&info, &[(k.into(), v)]);
         assert!(matches!(parse("distribution", Value::Text("phong".into())), Err(Error::Value(_))));
         assert!(matches!(parse("distribution", Value::Flag(true)), Err(Error::Type(_))));
         assert!(matches!(parse("x", Value::Number(1.5)), Err(Error::Value(_))));
@@ -343,13 +355,13 @@ mod tests {
             };
             assert!(!improved.is_empty(), "{}", info.name);
             let text = |s: &str| ("variant".to_string(), Value::Text(s.into()));
-            let on = Args::parse(info.name, info.options, &[text("improved")]).unwrap();
-            let published = Args::parse(info.name, info.options, &[text("published")]).unwrap();
+            let on = Args::parse(info, &[text("improved")]).unwrap();
+            let published = Args::parse(info, &[text("published")]).unwrap();
             for name in improved.iter() {
                 assert_eq!(on.flag(name), Ok(true), "{}: {name}", info.name);
                 assert_eq!(published.flag(name), Ok(false), "{}: {name}", info.name);
                 let off = [text("improved"), (name.to_string(), Value::Flag(false))];
-                assert_eq!(Args::parse(info.name, info.options, &off).unwrap().flag(name), Ok(false));
+                assert_eq!(Args::parse(info, &off).unwrap().flag(name), Ok(false));
             }
         }
     }

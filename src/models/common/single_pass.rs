@@ -27,7 +27,7 @@ use glam::DVec3;
 use std::f64::consts::FRAC_1_PI;
 
 /// A rough (or smooth) interface with its relative IOR per channel (below / above) and κ for conductors; `table`
-/// holds Elek's precomputed Fresnel table per channel when that variant is used.
+/// holds Elek's precomputed Fresnel table per channel with the option `precomputed`.
 pub struct SpInterface {
     pub mf: Microfacet,
     pub eta: Vec<f64>,
@@ -256,7 +256,7 @@ impl Walk {
         Walk { layers, groups, g2: opts.g2, fresnel: opts.fresnel, eta2: opts.eta2 }
     }
 
-    /// f(wi, wo) of `layers` (this walk's, or a per-element variant of them with the same channel structure) for
+    /// f(wi, wo) of `layers` (this walk's, or per-element layers of the same channel structure) for
     /// every channel into `out`; zero below the horizon. `normal` tilts the base, `tint` scales it per channel (or one
     /// for all). A block of one row (`eval_block`).
     #[allow(clippy::too_many_arguments)]
@@ -489,7 +489,7 @@ impl Walk {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::models::common::testing::dir;
+    use crate::models::common::testing::{channel, dir};
     use crate::models::steinberg;
 
     #[test]
@@ -527,7 +527,7 @@ mod tests {
                 let mut all = [0.0; 3];
                 crate::models::eval_one(&m, wi, wo, &[], &mut all);
                 for (c, f_all) in all.iter().enumerate() {
-                    let mono = rgb.channel(c);
+                    let mono = channel(&rgb, c);
                     let mut one = [0.0];
                     crate::models::eval_one(&steinberg::prepare(&mono, &opts).unwrap(), wi, wo, &[], &mut one);
                     assert_eq!(*f_all, one[0], "ior {ior:?}, channel {c}");

@@ -1,6 +1,6 @@
 //! What the models' unit tests share: layers, directions, one evaluation, and a hemispherical quadrature.
 
-use crate::models::{eval_one, Model};
+use crate::models::{eval_one, Args, Model, ModelInfo, Value};
 use crate::quadrature::gauss_legendre;
 use crate::stack::{Layer, Stack};
 use glam::DVec3;
@@ -59,4 +59,35 @@ pub fn hemisphere(n: usize, n_phi: usize, g: impl Fn(DVec3) -> f64) -> f64 {
         }
     }
     sum
+}
+
+/// A model's options from its table, with the values given by name.
+pub fn args(info: &ModelInfo, given: &[(&str, Value)]) -> Args {
+    let given: Vec<(String, Value)> = given.iter().map(|(k, v)| (k.to_string(), v.clone())).collect();
+    Args::parse(info, &given).unwrap()
+}
+
+/// The one-channel stack of channel `c` of `stack`'s optical constants (its geometry is every channel's).
+pub fn channel(stack: &Stack, c: usize) -> Stack {
+    let one = |v: &[f64]| vec![v[c]];
+    let layers = stack
+        .layers
+        .iter()
+        .map(|layer| match layer {
+            Layer::Dielectric { ior, alpha, angle, thickness, sigma_a, sigma_s, g } => Layer::Dielectric {
+                ior: one(ior),
+                alpha: *alpha,
+                angle: *angle,
+                thickness: *thickness,
+                sigma_a: one(sigma_a),
+                sigma_s: one(sigma_s),
+                g: *g,
+            },
+            Layer::Conductor { ior, k, alpha, angle } => {
+                Layer::Conductor { ior: one(ior), k: one(k), alpha: *alpha, angle: *angle }
+            }
+            Layer::Diffuse { albedo, roughness } => Layer::Diffuse { albedo: one(albedo), roughness: *roughness },
+        })
+        .collect();
+    Stack::new(layers, stack.ext_ior).unwrap()
 }

@@ -138,3 +138,39 @@ fn base_reflection(iface: &SpInterface, mu: f64, eta_up: &[f64]) -> Vec<(f64, f6
     }
     out.iter().map(|(a, ak)| (a / count as f64, ak / count as f64)).collect()
 }
+
+#[cfg(test)]
+mod tests {
+    use crate::models::common::testing::{args, conductor, dielectric, dir, f, hemisphere, stack};
+    use crate::models::{weidlich_wilkie, Value};
+    use crate::optics::fresnel;
+
+    #[test]
+    fn a_coated_mirror_metal_returns_what_its_coat_traps_and_no_more() {
+        // A clear smooth coat over a rough conductor of κ → ∞ (F = 1, no absorption): all light leaves in the end,
+        // so the light albedo (f's quadrature plus the coat's mirror reflection) is 1 less only the base's
+        // single-scattering loss. The single pass leaves out what the coat sends back down; the correction returns it
+        // (reciprocally) and stays within energy. Measured (θi 0, 40, 70°): 0.754 → 0.966, 0.624 → 0.956,
+        // 0.554 → 0.937.
+        let s = stack(vec![dielectric(1.5, 0.0, 0.0, 0.0, 0.0), conductor(1.0, 1e6, (0.3, 0.3))]);
+        let model = |on: bool| {
+            let opts = args(&weidlich_wilkie::INFO, &[("conductor_interreflection", Value::Flag(on))]);
+            weidlich_wilkie::prepare(&s, &weidlich_wilkie::Options::parse(&opts, 1).unwrap()).unwrap()
+        };
+        let (published, corrected) = (model(false), model(true));
+        for theta in [0.0, 40.0, 70.0] {
+            let wi = dir(theta, 0.0);
+            let albedo = |m: &dyn crate::models::Model| {
+                hemisphere(128, 256, |wo| f(m, wi, wo, 1)[0]) + fresnel::dielectric(wi.z, 1.5)
+            };
+            let (a, b) = (albedo(&published), albedo(&corrected));
+            assert!(a < b && b <= 1.0, "θi = {theta}°: {a} → {b}");
+            let (x, y) = (dir(theta, 0.0), dir(55.0, 160.0));
+            let (fxy, fyx) = (
+                f(&corrected, x, y, 1)[0] - f(&published, x, y, 1)[0],
+                f(&corrected, y, x, 1)[0] - f(&published, y, x, 1)[0],
+            );
+            assert!((fxy - fyx).abs() <= 1e-12 * fxy.abs(), "the added term is reciprocal: {fxy} vs {fyx}");
+        }
+    }
+}

@@ -20,10 +20,10 @@ use crate::models::{Inputs, Model, Proposal, BLOCK};
 use crate::stack::Stack;
 use crate::tables::adding_doubling::{Cells, NODES, N_THETA};
 use crate::tables::node;
-use crate::transport::Microsurface;
 use glam::DVec3;
 use rayon::prelude::*;
 use std::f64::consts::PI;
+use std::sync::atomic::{AtomicBool, Ordering};
 
 /// Azimuths per zenith pair of the fit (two blocks).
 const AZIMUTHS: usize = 2 * BLOCK;
@@ -59,7 +59,7 @@ pub fn fit(model: Box<dyn Model>, stack: &Stack) -> Result<Box<dyn Model>> {
     if anisotropic_layer(stack).is_some() {
         return Ok(model);
     }
-    let exact = tabulated::prepare(stack, Microsurface::default())?;
+    let exact = tabulated::prepare(stack, crate::models::reference_surface())?;
     let ch = stack.channels;
     // φ′ = π t² from the mirror plane, t at midpoints; weights ∝ dφ′ = 2π t dt, summing to 1.
     let t: Vec<f64> = (0..AZIMUTHS).map(|p| (p as f64 + 0.5) / AZIMUTHS as f64).collect();
@@ -71,12 +71,13 @@ pub fn fit(model: Box<dyn Model>, stack: &Stack) -> Result<Box<dyn Model>> {
             (cos, sin, t / total)
         })
         .collect();
-    crate::interrupt::check()?;
+    let stopped = AtomicBool::new(false);
     let fit: Vec<[f32; 2]> = (0..NODES * NODES)
         .into_par_iter()
         .flat_map_iter(|k| {
             if crate::interrupt::requested() {
-                return vec![[0.0; 2]; ch].into_iter(); // dropped: the fit returns Interrupted below
+                stopped.store(true, Ordering::Relaxed); // the fit is incomplete: Interrupted below
+                return vec![[0.0; 2]; ch].into_iter();
             }
             let moments =
                 azimuthal_moments(&*model, &*exact, node_cosine(k / NODES), node_cosine(k % NODES), &azimuths, ch);
@@ -238,7 +239,7 @@ mod tests {
         let layers = vec![dielectric(1.5, 0.3, 1.0, 0.2, 0.5), lambert(0.6)];
         let s = stack(layers.clone());
         let (_, improved) = fitted(layers);
-        let exact = tabulated::prepare(&s, Microsurface::default()).unwrap();
+        let exact = tabulated::prepare(&s, crate::models::reference_surface()).unwrap();
         for (i, o) in [(3, 10), (20, 20), (40, 5)] {
             let (zi, zo) = (node_cosine(i), node_cosine(o));
             let (si, so) = ((1.0 - zi * zi).sqrt(), (1.0 - zo * zo).sqrt());
