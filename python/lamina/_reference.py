@@ -43,12 +43,13 @@ def _progress(total: int, progress):
     return tqdm(total=total, unit="path", unit_scale=True, desc="lamina reference")
 
 
-def _finish(truncated: int):
+def _finish(truncated: int, stacklevel: int):
+    """Warns, at the user's call `stacklevel` frames up, of paths dropped at the depth limit."""
     if truncated:
         warnings.warn(
             f"{truncated} reference paths reached the depth limit ({_lamina.REFERENCE_MAX_DEPTH} events) "
             "and were dropped; the estimate is biased low by at most their share",
-            stacklevel=4,
+            stacklevel=stacklevel,
         )
 
 
@@ -95,7 +96,7 @@ def f_estimate(layers, ext_ior, wi_rows, wo_rows, samples: int, seed: int, progr
     finally:
         if bar is not None:
             bar.close()
-    _finish(truncated)
+    _finish(truncated, stacklevel=5)  # the user's call -> Stack.reference -> _reference_f -> f_estimate -> _finish
     s, s2 = np.concatenate([a for a, _ in sums]), np.concatenate([b for _, b in sums])
     return _mean_stderr(s, s2, samples)
 
@@ -126,5 +127,5 @@ def tally(layers, ext_ior, wi_rows: np.ndarray, samples: int, seed: int, bins=(1
     finally:
         if bar is not None:
             bar.close()
-    _finish(truncated)
+    _finish(truncated, stacklevel=4)  # the user's call -> Stack.albedo or reference_lobe -> tally -> _finish
     return np.array(means), np.array(errors)
