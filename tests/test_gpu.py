@@ -1,5 +1,6 @@
-"""The wgpu path against the CPU: every microfacet configuration, and Belcour, Steinberg, Weidlich–Wilkie and albedo
-scaling on the suite with their options, random stacks, spectral and dispersive channels and inputs longer than one
+"""The wgpu path against the CPU: every microfacet configuration, and Belcour, Steinberg, Weidlich–Wilkie, albedo
+scaling and tabulated on the suite with their options (variant="improved", lamina's transport_fit, included), random
+stacks, spectral and dispersive channels and inputs longer than one
 dispatch agree to 1e-4 relative on values above 1e-6 of the peak (the issue's criterion; the float32 shader against
 the float64 core measures about 1e-5 at worst), plus where f is ill-conditioned in float32 what 4-ulp changes of the
 inputs alone move the float64 result by. Runs on whatever adapter wgpu finds: lavapipe in CI (make test installs it
@@ -35,15 +36,18 @@ def _directions(n: int, seed: int) -> tuple[np.ndarray, np.ndarray]:
 
 
 def float32_conditioning(stack, wi, wo, model, wavelengths, options, seed) -> np.ndarray:
-    """How far the float64 result itself moves when every input component moves by 4 float32 ulps (the most of
-    4 random draws), relative to it: what any float32 evaluation may differ by on top of RTOL. About 1e-6 almost
-    everywhere; up to ~1e-3 where f has an infinite slope, e.g. a Fresnel factor at the critical angle (η < 1)."""
+    """How far the float64 result itself moves when every input component (directions and per-element inputs) moves
+    by 4 float32 ulps (the most of 4 random draws), relative to it: what any float32 evaluation may differ by on top
+    of RTOL. About 1e-6 almost everywhere; up to ~1e-3 where f has an infinite slope, e.g. a Fresnel factor at the
+    critical angle (η < 1)."""
     rng = np.random.default_rng(seed + 1)
     cpu = stack.eval(wi, wo, model, wavelengths=wavelengths, **options)
     spread = np.zeros_like(cpu)
     for _ in range(4):
         nudge = lambda w: w * (1 + 4 * np.finfo(np.float32).eps * rng.uniform(-1, 1, w.shape))  # noqa: E731
-        moved = stack.eval(nudge(wi), nudge(wo), model, wavelengths=wavelengths, **options)
+        # The per-element inputs (arrays among the options) are rounded to float32 too.
+        moved_options = {k: nudge(v) if isinstance(v, np.ndarray) else v for k, v in options.items()}
+        moved = stack.eval(nudge(wi), nudge(wo), model, wavelengths=wavelengths, **moved_options)
         spread = np.maximum(spread, np.abs(moved - cpu) / np.maximum(np.abs(cpu), 1e-300))
     return spread
 
@@ -133,6 +137,45 @@ def test_layered_model_options(material, model, options):
     assert_parity(materials.suite(material), model, **options)
 
 
+ISOTROPIC = [m for m in sorted(materials.SUITE) if m != "anisotropic-coat-metal"]  # what tabulated takes
+
+
+@pytest.mark.parametrize("material", ISOTROPIC + ["gold"])
+def test_tabulated_on_the_suite(material):
+    """The adding-doubling table interpolated in float32 (a single layer runs as microfacet), measured ≤ 3.4e-5."""
+    stack = materials.preset(material) if material in materials.PRESETS else materials.suite(material)
+    assert_parity(stack, "tabulated")
+
+
+@pytest.mark.parametrize("model", ["belcour", "steinberg", "weidlich_wilkie"])
+@pytest.mark.parametrize("material", sorted(materials.SUITE))
+def test_improved_variants_on_the_suite(material, model):
+    """transport_fit's s f + a after the model's own f (an anisotropic stack keeps the published model, as on the
+    CPU): the GPU applies the CPU's fit, so parity holds as for the published models."""
+    assert_parity(materials.suite(material), model, variant="improved")
+
+
+@settings(max_examples=8, deadline=None)
+@given(
+    model=st.sampled_from(["tabulated", "belcour", "steinberg", "weidlich_wilkie"]),
+    ior=st.floats(1.05, 2.5),
+    coat=st.one_of(st.just(0.0), st.floats(0.05, 0.8)),
+    sigma_a=st.floats(0.0, 2.0),
+    base=st.floats(0.05, 0.9),
+    seed=st.integers(0, 1000),
+)
+def test_random_isotropic_stacks_tabulated_and_improved(model, ior, coat, sigma_a, base, seed):
+    """Random isotropic stacks (what the adding-doubling solver takes; α ≥ 0.05 keeps the table's lobes resolved)."""
+    stack = lamina.Stack(
+        [
+            lamina.Dielectric(ior, coat, thickness=1.0, sigma_a=sigma_a),
+            lamina.Conductor((0.2, 0.9, 1.1), (3.0, 2.6, 2.3), base),
+        ]
+    )
+    options = {} if model == "tabulated" else {"variant": "improved"}
+    assert_parity(stack, model, n=2000, seed=seed, **options)
+
+
 def test_layered_models_spectral_and_dispersive():
     """Spectral channels, and a dispersive coat (an IOR per channel: one pass per channel on the CPU too)."""
     wl = np.arange(400.0, 701.0, 20.0)
@@ -145,6 +188,63 @@ def test_layered_models_spectral_and_dispersive():
             ]
         )
         assert_parity(dispersive, model)
+
+
+def _inputs(n: int, seed: int) -> dict:
+    """Per-element inputs of car paint and the patina for n elements: flakes up to ~60° from the normal (some tilting
+    the base below the horizon at large spread), viewing distances and mask values over [0, 1]."""
+    rng = np.random.default_rng(seed)
+    flake = rng.normal(size=(n, 3)) * rng.uniform(0.0, 0.8, (n, 1))
+    # The mask stays 1e-6 inside [0, 1]: float32_conditioning's nudges must not leave the allowed range.
+    return dict(flake_normal=flake, distance=rng.uniform(0.0, 3.0, n), mask=rng.uniform(1e-6, 1.0 - 1e-6, n))
+
+
+@pytest.mark.parametrize(
+    "material,inputs,options",
+    [
+        ("car-paint", ["flake_normal"], {}),
+        ("car-paint", ["flake_normal", "distance"], {"interreflection": True}),
+        ("patina", ["mask"], {}),
+        ("patina", ["mask", "flake_normal"], {"conductor_interreflection": True}),
+        ("patina", ["mask"], {"clamp_roughness": False, "transition": 0.0, "tint": 0.5}),
+        ("patina", ["mask"], {"eta2": False, "extent": 0.2, "tint": (0.9, 0.5, 0.2)}),
+    ],
+)
+def test_per_element_inputs(material, inputs, options):
+    """Weidlich–Wilkie's per-element inputs on the GPU: the base tilted by a flake (below its horizon: nothing), the
+    patina's blend of the bare and the covered surface at each element's mask (measured ≤ 2e-5 relative, and up to
+    1.3e-4 where a flake's tilt amplifies the float32 rounding: float32_conditioning covers it)."""
+    if material == "patina":
+        patina = materials.patina()
+        stack, options = patina.stack, {**patina.params, **options}
+    else:
+        stack = materials.car_paint()
+    given = {k: v for k, v in _inputs(20_000, 5).items() if k in inputs}
+    assert_parity(stack, "weidlich_wilkie", **given, **options)
+
+
+def test_per_element_inputs_in_sample():
+    """Stack.sample with per-element inputs: the mixture ignores them, as on the CPU (the same lobe and direction from
+    the same u), and the weight is f cos θi / pdf with the element's inputs, to RTOL plus what 4-ulp input changes
+    move f by."""
+    patina = materials.patina()
+    rng = np.random.default_rng(9)
+    wo, _ = _directions(5000, 6)
+    u = rng.uniform(size=(5000, 3))
+    given = _inputs(5000, 7)
+    wi_c, _, p_c = patina.stack.sample(wo, u, "weidlich_wilkie", **patina.params, **given)
+    wi, weight, pdf = patina.stack.sample(wo, u, "weidlich_wilkie", device="gpu", **patina.params, **given)
+    ok = p_c > 0
+    assert np.array_equal(pdf > 0, ok) and ok.mean() > 0.4
+    assert np.abs(wi[ok] - wi_c[ok]).max() <= 1e-3
+    wi64 = wi[ok].astype(np.float64)
+    options = {**patina.params, **{k: v[ok] for k, v in given.items()}}
+    p_ref = patina.stack.pdf(wi64, wo[ok], "weidlich_wilkie", **patina.params)
+    w_ref = patina.stack.eval(wi64, wo[ok], "weidlich_wilkie", **options) * wi64[:, 2:] / p_ref[:, None]
+    big = w_ref > 1e-6 * w_ref.max()
+    allowed = RTOL + float32_conditioning(patina.stack, wi64, wo[ok], "weidlich_wilkie", None, options, 9)
+    rel = np.abs(weight[ok] - w_ref) / np.where(big, w_ref, 1)
+    assert np.all(rel[big] <= allowed[big]), np.max(rel[big] - allowed[big])
 
 
 @settings(max_examples=15, deadline=None)
@@ -212,17 +312,27 @@ def test_device_choice_and_errors():
         stack.eval(wi, wo, device="tpu")
     with pytest.raises(ValueError, match="no GPU implementation yet"):
         materials.suite("gold-clearcoat").eval(wi, wo, "reference", device="gpu")
-    with pytest.raises(ValueError, match="per-element inputs run on the CPU only"):
-        materials.car_paint().eval(wi, wo, "weidlich_wilkie", device="gpu", flake_normal=wi)
+    with pytest.raises(ValueError, match="mask: a patina stack is a Dielectric layer"):
+        materials.suite("three-layer").eval(wi, wo, "weidlich_wilkie", device="gpu", mask=0.5)
+    with pytest.raises(ValueError, match="mask: the patina's IOR changes per element"):
+        materials.patina().stack.eval(wi, wo, "weidlich_wilkie", device="gpu", mask=0.5, precomputed=True)
+    with pytest.raises(ValueError, match="transport_fit fits the stack as prepared"):
+        materials.car_paint().eval(wi, wo, "weidlich_wilkie", device="gpu", flake_normal=wi, variant="improved")
+    with pytest.raises(ValueError, match=r"mask contains NaN, Inf or a value outside \[0, 1\]"):
+        materials.patina().stack.eval(wi, wo, "weidlich_wilkie", device="gpu", mask=1.5)
     deep = lamina.Stack([lamina.Dielectric(1.5, 0.1, thickness=0.1)] * 8 + [lamina.Conductor(0.2, 3.0, 0.2)])
     with pytest.raises(ValueError, match="at most 8 layers"):
         lamina.render(deep, "steinberg", width=4, height=4, device="gpu")
     with pytest.raises(ValueError, match="at most 8 layers"):
         deep.sample(wo, np.full(3, 0.5), "steinberg", device="gpu")
     lamina.render(deep, "steinberg", width=4, height=4, device="gpu", lights=[lamina.DirectionalLight((0, 0, 1))])
-    with pytest.raises(ValueError, match="transport_fit .variant='improved'. runs on the CPU only"):
-        materials.suite("gold-clearcoat").eval(wi, wo, "steinberg", device="gpu", variant="improved")
-    assert not gpu.use_gpu("auto", "belcour", {"variant": "improved"})
+    with pytest.raises(ValueError, match="tabulates isotropic stacks"):
+        materials.suite("anisotropic-coat-metal").eval(wi, wo, "tabulated", device="gpu")
+    # The catalogue says which models and options run here, from the same rule.
+    for m in lamina.catalogue.models():
+        assert m.gpu.startswith("yes") == (m.name in gpu.models()), m
+    assert lamina.catalogue.model("belcour").gpu == "yes, but not interpolated=False"
+    assert lamina.catalogue.model("reference").gpu == "no"
     with pytest.raises(ValueError, match="interpolated=False runs on the CPU only"):
         materials.suite("gold-clearcoat").eval(wi, wo, "belcour", device="gpu", interpolated=False)
     with pytest.raises(ValueError, match="wi contains a zero-length direction"):
@@ -234,22 +344,24 @@ def test_device_choice_and_errors():
 
 
 @pytest.mark.parametrize(
-    "material,model",
+    "material,model,options",
     [
-        ("gold", "microfacet"),
-        ("brushed-aluminium", "microfacet"),
-        ("anisotropic-coat-metal", "belcour"),
-        ("varnished-diffuse", "belcour"),
-        ("three-layer", "steinberg"),
-        ("car-paint", "weidlich_wilkie"),
-        ("gold-clearcoat", "albedo_scaling"),
+        ("gold", "microfacet", {}),
+        ("brushed-aluminium", "microfacet", {}),
+        ("anisotropic-coat-metal", "belcour", {}),
+        ("varnished-diffuse", "belcour", {}),
+        ("three-layer", "steinberg", {}),
+        ("car-paint", "weidlich_wilkie", {}),
+        ("gold-clearcoat", "albedo_scaling", {}),
+        ("rough-coat-rough-copper", "tabulated", {}),
+        ("three-layer", "steinberg", {"variant": "improved"}),
     ],
 )
 @pytest.mark.parametrize(
     "shape,camera",
     [("sphere", None), ("plane", ((0.3, -2.0, 3.0), (0, 0, 0), 40)), ("mesh", ((0.5, 0.8, 3.0), (0, 0, 0), 45))],
 )
-def test_renderer_matches_the_cpu_renderer(material, model, shape, camera):
+def test_renderer_matches_the_cpu_renderer(material, model, options, shape, camera):
     """The deterministic scenes (directional and point lights): the GPU renderer and the CPU renderer, pixel by pixel,
     ≤ 1e-3 relative on pixels above 1e-6 of the peak (the issue's criterion), and a batch is the single renders. A
     mesh (a latitude-longitude sphere) is rasterized on the GPU and ray traced on the CPU: both sample pixel centres,
@@ -263,7 +375,7 @@ def test_renderer_matches_the_cpu_renderer(material, model, shape, camera):
         lamina.DirectionalLight((-0.4, 0.5, 0.8), (2.0, 1.5, 1.0)),
         lamina.PointLight((1.5, 1.0, 2.5), (8.0, 8.0, 6.0)),
     ]
-    kwargs = dict(shape=shape, camera=camera, lights=lights, width=40, height=32)
+    kwargs = dict(shape=shape, camera=camera, lights=lights, width=40, height=32, **options)
     cpu = lamina.render(stack, model, device="cpu", **kwargs)
     out = lamina.render([stack, stack], model, device="gpu", **kwargs)
     assert out.shape == (2, 32, 40, 3) and out.dtype == np.float32
@@ -283,19 +395,66 @@ def test_renderer_matches_the_cpu_renderer(material, model, shape, camera):
     assert big.mean() > 0.2
 
 
-@pytest.mark.parametrize("model", ["microfacet", "belcour", "steinberg", "weidlich_wilkie", "albedo_scaling"])
+@pytest.mark.parametrize("shape", ["plane", "sphere"])
+@pytest.mark.parametrize("what", ["flakes", "patina"])
+def test_textured_renders_match_the_cpu_renderer(what, shape):
+    """Per-element inputs as textures over the surface's uv (the nearest texel, wrapping), shared by a batch of
+    stacks: the GPU's render is the CPU's pixel by pixel (≤ 1e-3 relative on pixels above 1e-6 of the peak) on the
+    plane, whose uv is exact in float32. On the sphere float32 uv (atan2 and acos of the normal) moves a lookup across
+    a texel edge for a few pixels, which then shade the neighbouring texel's flake or mask value (measured 0.13% of the
+    pixels with a 128² mask, none with the flakes): at most 0.5% may differ more. A batch is its single renders."""
+    lights = [
+        lamina.DirectionalLight((-0.4, 0.5, 0.8), (2.0, 1.5, 1.0)),
+        lamina.PointLight((1.5, 1.0, 2.5), (8.0, 8.0, 6.0)),
+    ]
+    if what == "flakes":
+        stacks = [materials.car_paint(), materials.suite("gold-clearcoat")]
+        inputs = dict(flake_normal=materials.flake_texture(256, 100), distance=2.0)
+    else:
+        patinas = [materials.patina(), materials.patina(thickness=2.0, roughness=0.1)]
+        stacks = [p.stack for p in patinas]
+        inputs = dict(mask=materials.patina_mask(128), **patinas[0].params)
+    kwargs = dict(shape=shape, lights=lights, width=64, height=64, **inputs)
+    out = lamina.render(stacks, "weidlich_wilkie", device="gpu", **kwargs)
+    for image, stack in zip(out, stacks, strict=True):
+        cpu = lamina.render(stack, "weidlich_wilkie", device="cpu", **kwargs)
+        big = cpu > 1e-6 * cpu.max()
+        rel = np.abs(image[big] - cpu[big]) / cpu[big]
+        assert np.mean(rel > 1e-3) <= (0.005 if shape == "sphere" else 0.0), (np.mean(rel > 1e-3), rel.max())
+        assert big.mean() > 0.2
+        np.testing.assert_array_equal(image, lamina.render(stack, "weidlich_wilkie", device="gpu", **kwargs))
+    assert np.any(out[0] != out[1])
+
+
+@pytest.mark.parametrize(
+    "model,options",
+    [
+        ("microfacet", {}),
+        ("belcour", {}),
+        ("steinberg", {}),
+        ("weidlich_wilkie", {}),
+        ("albedo_scaling", {}),
+        ("tabulated", {}),
+        ("steinberg", {"variant": "improved"}),
+    ],
+)
 @pytest.mark.parametrize("sky", [False, True])
-def test_a_batch_of_different_stacks_is_its_single_renders(model, sky):
-    """One dispatch renders a batch: each stack's parameters and arrays (layers, Belcour's table and diffuse base)
-    sit at their offsets in shared buffers. A batch of stacks of different depths and kinds equals, bit for bit, each
-    stack rendered alone (same code, same random numbers: the sampler is seeded by the pixel within its image)."""
+def test_a_batch_of_different_stacks_is_its_single_renders(model, options, sky):
+    """One dispatch renders a batch: each stack's parameters and arrays (layers, Belcour's table and diffuse base,
+    tabulated's tables, transport_fit's fit) sit at their offsets in shared buffers. A batch of stacks of different
+    depths and kinds equals, bit for bit, each stack rendered alone (same code, same random numbers: the sampler is
+    seeded by the pixel within its image). Tabulated's single layer (gold) renders in a dispatch of its own, as
+    microfacet; an anisotropic stack has no fit beside stacks that have one."""
     names = {
         "microfacet": ["gold", "brushed-aluminium", "copper"],
         "belcour": ["anisotropic-coat-metal", "varnished-diffuse", "gold-clearcoat"],
+        "tabulated": ["gold", "three-layer", "varnished-diffuse", "gold-clearcoat"],
     }.get(model, ["three-layer", "varnished-diffuse", "gold-clearcoat", "thick-absorbing-slab"])
+    if options:
+        names = ["anisotropic-coat-metal", "varnished-diffuse", "gold-clearcoat"]
     stacks = [materials.preset(n) if n in materials.PRESETS else materials.suite(n) for n in names]
     lights = [lamina.DirectionalLight((-0.4, 0.5, 0.8), (2.0, 1.5, 1.0))]
-    kwargs = dict(lights=lights, width=24, height=20, device="gpu")
+    kwargs = dict(lights=lights, width=24, height=20, device="gpu", **options)
     if sky:
         kwargs.update(lights=[lamina.EnvironmentLight("sky")], spp=4, seed=3)
     batch = lamina.render(stacks, model, **kwargs)
@@ -321,6 +480,10 @@ def _block_means(images: np.ndarray, block: int) -> np.ndarray:
         ("varnished-diffuse", "weidlich_wilkie", "sphere"),
         ("car-paint", "weidlich_wilkie", "mesh"),
         ("gold-clearcoat", "albedo_scaling", "sphere"),
+        ("rough-coat-rough-copper", "tabulated", "sphere"),
+        ("varnished-diffuse", "steinberg:improved", "sphere"),
+        ("car-paint-flakes", "weidlich_wilkie", "sphere"),
+        ("patina", "weidlich_wilkie", "plane"),
     ],
 )
 def test_environment_lit_renders_agree_statistically(material, model, shape):
@@ -329,9 +492,17 @@ def test_environment_lit_renders_agree_statistically(material, model, shape):
     pixel blocks: each block's difference over its standard error (from the spread of the seeds on both devices, 6
     degrees of freedom) exceeds 3 for at most 10% of the blocks (Student's t: 2.4% expected), and the whole image's
     mean differs by at most 4 standard errors. Where the ray misses, both show the sky itself (its nearest texel)."""
-    stack = materials.car_paint() if material == "car-paint" else None
-    stack = stack or (materials.preset(material) if material in materials.PRESETS else materials.suite(material))
+    stack = materials.car_paint() if material.startswith("car-paint") else None
+    stack = stack or (materials.preset(material) if material in materials.PRESETS else None)
+    stack = stack or (materials.patina().stack if material == "patina" else materials.suite(material))
     kwargs = dict(width=32, height=32, spp=32, shape=uv_sphere_mesh(16, 32) if shape == "mesh" else shape)
+    if material == "car-paint-flakes":
+        kwargs["flake_normal"] = materials.flake_texture(256, 100)
+    if material == "patina":
+        kwargs.update(materials.patina().params, mask=materials.patina_mask(64))
+    model, _, variant = model.partition(":")
+    if variant:
+        kwargs["variant"] = variant
     if shape == "plane":
         kwargs["camera"] = ((0.3, -2.0, 3.0), (0, 0, 0), 40)
     gpu_runs = np.stack([lamina.render(stack, model, device="gpu", seed=s, **kwargs) for s in range(4)])
@@ -370,6 +541,11 @@ def test_environment_lit_renders_agree_statistically(material, model, shape):
         ("rough-coat-rough-copper", "weidlich_wilkie", {"conductor_interreflection": True}),
         ("car-paint", "weidlich_wilkie", {}),
         ("gold-clearcoat", "albedo_scaling", {}),
+        ("rough-coat-rough-copper", "tabulated", {}),
+        ("gold", "tabulated", {}),
+        ("three-layer", "belcour", {"variant": "improved"}),
+        ("varnished-diffuse", "steinberg", {"variant": "improved"}),
+        ("rough-coat-rough-copper", "weidlich_wilkie", {"variant": "improved"}),
     ],
 )
 def test_sample_and_pdf_match_the_cpu(material, model, options):

@@ -199,7 +199,7 @@ def test_image_files_round_trip(tmp_path):
 @pytest.mark.parametrize(
     "kwargs,error,match",
     [
-        (dict(device="gpu", model="weidlich_wilkie", mask=0.5), ValueError, "per-element inputs run on the CPU only"),
+        (dict(device="gpu", model="weidlich_wilkie", mask=0.5), ValueError, "mask: a patina stack is a Dielectric"),
         (dict(device="gpu", model="reference"), ValueError, "model .reference. has no GPU implementation"),
         (dict(device="tpu"), ValueError, "device must be"),
         (dict(width=0), ValueError, "width must be in"),

@@ -92,11 +92,6 @@ def test_tables_are_cached_on_disk_keyed_by_the_stack(tmp_path):
     assert len(list((tmp_path / "tables").rglob("tabulated-*.f32"))) == 2
 
 
-def test_gpu_device_is_refused_clearly():
-    with pytest.raises(ValueError, match="model 'tabulated' has no GPU implementation"):
-        suite("rough-coat-rough-copper").eval([0, 0, 1], [0, 0, 1], "tabulated", device="gpu")
-
-
 @pytest.mark.parametrize("name", ["rough-coat-rough-copper", "three-layer", "scattering-slab"])
 def test_tabulated_is_reciprocal_on_layered_stacks(name, rng):
     """Helmholtz reciprocity through the whole stack: the table keeps each reciprocal pair once and interpolates (θi,

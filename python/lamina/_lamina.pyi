@@ -34,6 +34,7 @@ __all__ = [
     "_gpu_lose_after",
     "gpu_models",
     "gpu_resident_seconds",
+    "gpu_readback_seconds",
     "interface_bsdf",
     "use_gpu",
     "jacobian",
@@ -78,9 +79,7 @@ SOURCE_HASH: str
 def check_layer(layer: dict, name: str) -> None: ...
 def check_stack(layers: list[dict], ext_ior: float, model: str | None = None) -> int: ...
 def models() -> list[dict]: ...
-def use_gpu(
-    device: str, model: str | None = None, options: dict | None = None, inputs: bool = False, float32: bool = True
-) -> bool: ...
+def use_gpu(device: str, model: str | None = None, options: dict | None = None, float32: bool = True) -> bool: ...
 def cache_read(path: str) -> bytes | None: ...
 def cache_write(path: str, payload: bytes) -> None: ...
 def cache_root() -> str | None: ...
@@ -218,10 +217,22 @@ def gpu_adapter() -> dict[str, str]: ...
 def gpu_models() -> list[str]: ...
 def _gpu_lose_after(dispatches: int) -> None: ...
 def eval_gpu(
-    layers: list[dict], ext_ior: float, model: str, wi: _Array, wo: _Array, options: dict | None = None
+    layers: list[dict],
+    ext_ior: float,
+    model: str,
+    wi: _Array,
+    wo: _Array,
+    options: dict | None = None,
+    inputs: dict[str, _Array] | None = None,
 ) -> _Array: ...
 def sample_gpu(
-    layers: list[dict], ext_ior: float, model: str, wo: _Array, u: _Array, options: dict | None = None
+    layers: list[dict],
+    ext_ior: float,
+    model: str,
+    wo: _Array,
+    u: _Array,
+    options: dict | None = None,
+    inputs: dict[str, _Array] | None = None,
 ) -> _Array: ...
 def pdf_gpu(
     layers: list[dict], ext_ior: float, model: str, wi: _Array, wo: _Array, options: dict | None = None
@@ -235,10 +246,12 @@ def gpu_resident_seconds(
     repeats: int,
     options: dict | None = None,
 ) -> float: ...
+def gpu_readback_seconds(bytes: int, repeats: int) -> float: ...
 def render_gpu(
     stacks: list[tuple[list[dict], float]],
     model: str,
     options: dict | None,
+    textures: dict[str, _Array] | None,
     shape: str | tuple,
     camera: tuple[tuple[float, float, float], tuple[float, float, float], float] | None,
     lights: list[tuple[str, tuple[float, float, float], tuple[float, float, float]]],

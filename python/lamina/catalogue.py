@@ -54,6 +54,8 @@ class Model:
     energy_conserving: bool
     anisotropic: bool
     spectral: bool
+    #: Whether the model runs on the GPU: "yes", "yes, but not" the option values that stay on the CPU, or "no".
+    gpu: str = "no"
 
     def __repr__(self) -> str:
         return f"<lamina model {self.name!r}: {self.summary}>"
@@ -72,7 +74,9 @@ def _from_rust(d: dict) -> Model:
         for o in d["options"]
     }
     inputs = {i["name"]: Input(i["name"], i["width"], tuple(i["range"]), i["doc"]) for i in d["inputs"]}
-    return Model(d["name"], d["summary"], MappingProxyType(options), MappingProxyType(inputs), **d["properties"])
+    return Model(
+        d["name"], d["summary"], MappingProxyType(options), MappingProxyType(inputs), **d["properties"], gpu=d["gpu"]
+    )
 
 
 _CATALOGUE = tuple(_from_rust(d) for d in _lamina.models())
@@ -82,8 +86,8 @@ MODELS: tuple = tuple(m.name for m in _CATALOGUE)
 
 
 def models() -> list:
-    """The catalogue: one `Model` per model (`.name`, `.summary`, `.options`, `.inputs`, and the properties
-    `.reciprocal`, `.energy_conserving`, `.anisotropic`, `.spectral`)."""
+    """The catalogue: one `Model` per model (`.name`, `.summary`, `.options`, `.inputs`, the properties
+    `.reciprocal`, `.energy_conserving`, `.anisotropic`, `.spectral`, and `.gpu`: whether it runs on the GPU)."""
     return list(_CATALOGUE)
 
 
@@ -115,15 +119,15 @@ def markdown_table() -> str:
     """The README's model table."""
     yes = {True: "yes", False: "no"}
     rows = [
-        "| model | what it is | options | per-element inputs | reciprocal | energy-conserving | anisotropic |",
-        "|---|---|---|---|---|---|---|",
+        "| model | what it is | options | per-element inputs | reciprocal | energy-conserving | anisotropic | GPU |",
+        "|---|---|---|---|---|---|---|---|",
     ]
     for m in _CATALOGUE:
         opts = ", ".join(f"`{o}`" for o in m.options) or "—"
         inputs = ", ".join(f"`{i}`" for i in m.inputs) or "—"
         rows.append(
             f"| `{m.name}` | {m.summary} | {opts} | {inputs} | {yes[m.reciprocal]} | "
-            f"{yes[m.energy_conserving]} | {yes[m.anisotropic]} |"
+            f"{yes[m.energy_conserving]} | {yes[m.anisotropic]} | {m.gpu} |"
         )
     return "\n".join(rows)
 

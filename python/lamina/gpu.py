@@ -45,16 +45,14 @@ def models() -> list[str]:
     return list(_lamina.gpu_models()) if hasattr(_lamina, "gpu_models") else []
 
 
-def use_gpu(
-    device: str, model: str | None, options: dict | None = None, inputs: bool = False, float32: bool = True
-) -> bool:
-    """Whether `device` means the GPU for `model` (None: Oat's materials, which always run there) with `options`
-    (and per-element inputs when `inputs`), for a result that is float32 anyway when `float32`. Rust decides
+def use_gpu(device: str, model: str | None, options: dict | None = None, float32: bool = True) -> bool:
+    """Whether `device` means the GPU for `model` (None: Oat's materials, which always run there) with `options`,
+    for a result that is float32 anyway when `float32`. Rust decides
     (src/device.rs): "cpu" never; "gpu" always, or a ValueError saying why the model does not run there (RuntimeError
     without an adapter, saying how to get one); "auto" when there is a hardware GPU (not lavapipe), the model runs there
     with these options and the result is float32 anyway."""
     _headless()
-    return _lamina.use_gpu(device, model, options or {}, inputs, float32)
+    return _lamina.use_gpu(device, model, options or {}, float32)
 
 
 def resident_throughput(stack, wi, wo, model: str = "microfacet", repeats: int = 5, **options) -> float:
@@ -67,3 +65,9 @@ def resident_throughput(stack, wi, wo, model: str = "microfacet", repeats: int =
     n = int(np.prod(wi.shape[:-1]))
     seconds = _lamina.gpu_resident_seconds(stack._resolve(None), stack.ext_ior, model, wi, wo, repeats, options)
     return n / seconds
+
+
+def readback_seconds(nbytes: int, repeats: int = 10) -> float:
+    """Seconds to copy `nbytes` of results on the device into mappable memory and map them for the CPU: the read-back
+    that every `device="gpu"` call pays on top of its work (an image: 12 bytes per pixel). For benchmarks."""
+    return _lamina.gpu_readback_seconds(int(nbytes), int(repeats))

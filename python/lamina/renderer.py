@@ -298,8 +298,8 @@ def render(
     device: "auto" (default), "cpu" or "gpu", by the rule of Stack.eval (docs/conventions.md): "gpu" renders with the
     models that run on the GPU (lamina.gpu.models(), wgpu, float32, one dispatch for a list of stacks, split only
     where the adapter's storage-buffer limit requires; a mesh is rasterized through the camera first; an environment
-    is sampled as on the CPU, with other random numbers: the images agree statistically; per-element textures and the
-    reference raise ValueError); "auto" takes a hardware GPU for such scenes (a render is float32 anyway), else the
+    is sampled as on the CPU, with other random numbers: the images agree statistically; the reference raises
+    ValueError); "auto" takes a hardware GPU for such scenes (a render is float32 anyway), else the
     CPU.
 
     material: instead of stacks, a lamina.oat.Material or a list of them (Oat 2006's gooey layers, lit by the
@@ -335,8 +335,8 @@ def render(
     textures = {k: _texture(k, v, m.inputs[k].width) for k, v in kwargs.items() if k in m.inputs}
     options = {k: v for k, v in kwargs.items() if k not in textures}  # checked by Rust against the model's table
     layers = [(s._resolve(None), s.ext_ior) for s in items]
-    if _gpu.use_gpu(device, m.name, options, bool(textures)):
-        out = _lamina.render_gpu(layers, m.name, options, shape, camera, specs, width, height, env, spp, seed)
+    if _gpu.use_gpu(device, m.name, options):
+        out = _lamina.render_gpu(layers, m.name, options, textures, shape, camera, specs, width, height, env, spp, seed)
         return out[0] if single else out
     out = np.empty((len(items), height, width, 3), dtype=np.float32)
     band = max(1, 4096 // width)

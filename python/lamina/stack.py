@@ -120,16 +120,14 @@ class Stack:
         if tolerance is not None:
             raise TypeError(f"tolerance applies to model='auto' only, got model={model!r}")
         m, options, inputs = self._split(model, kwargs)
-        on_gpu = _gpu.use_gpu(device, m.name, options, bool(inputs), _float32(wi, wo))
+        on_gpu = _gpu.use_gpu(device, m.name, options, _float32(wi, wo, *(v for v, _ in inputs.values())))
         if m.name == "reference":
             return self._reference_f(wi, wo, wavelengths, samples, seed, None, options)[0]
         wl = _wavelengths(wavelengths)
-        if on_gpu:
-            wi, wo = broadcast(wi=(wi, 3), wo=(wo, 3))
-            return _lamina.eval_gpu(self._resolve(wl), self.ext_ior, m.name, wi, wo, options)
         arrays = broadcast(wi=(wi, 3), wo=(wo, 3), **inputs)
         named = dict(zip(inputs, arrays[2:]))
-        return _lamina.eval(self._resolve(wl), self.ext_ior, m.name, arrays[0], arrays[1], options, named)
+        run = _lamina.eval_gpu if on_gpu else _lamina.eval
+        return run(self._resolve(wl), self.ext_ior, m.name, arrays[0], arrays[1], options, named)
 
     def sample(self, wo, u, model: str = "microfacet", *, wavelengths=None, device: str = "auto", **kwargs):
         """Importance-samples the light direction for viewing directions wo (..., 3) from uniform numbers u (..., 3)
@@ -145,9 +143,9 @@ class Stack:
         mixture from the same u)."""
         m, options, inputs = self._split(model, kwargs)
         wl = _wavelengths(wavelengths)
-        if _gpu.use_gpu(device, m.name, options, bool(inputs), _float32(wo, u)):
-            wo, u = broadcast(wo=(wo, 3), u=(u, 3))
-            out = _lamina.sample_gpu(self._resolve(wl), self.ext_ior, m.name, wo, u, options)
+        if _gpu.use_gpu(device, m.name, options, _float32(wo, u, *(v for v, _ in inputs.values()))):
+            wo, u, *rest = broadcast(wo=(wo, 3), u=(u, 3), **inputs)
+            out = _lamina.sample_gpu(self._resolve(wl), self.ext_ior, m.name, wo, u, options, dict(zip(inputs, rest)))
             return out[..., :3], out[..., 3:-1], out[..., -1]
         wo, u, *rest = broadcast(wo=(wo, 3), u=(u, 3), **inputs)
         if m.name == "reference":
@@ -168,7 +166,7 @@ class Stack:
             raise TypeError(
                 f"pdf takes no per-element inputs (the sampling mixture does not depend on them), got {list(inputs)}"
             )
-        on_gpu = _gpu.use_gpu(device, m.name, options, False, _float32(wi, wo))
+        on_gpu = _gpu.use_gpu(device, m.name, options, _float32(wi, wo))
         wi, wo = broadcast(wi=(wi, 3), wo=(wo, 3))
         run = _lamina.pdf_gpu if on_gpu else _lamina.pdf
         return run(self._resolve(_wavelengths(wavelengths)), self.ext_ior, m.name, wi, wo, options)[..., 0]

@@ -54,6 +54,8 @@ pub const INFO: ModelInfo = ModelInfo {
     inputs: &[] as &[InputSpec],
     properties: Properties { reciprocal: true, energy_conserving: true, anisotropic: true, spectral: true },
     prepare: |stack, args| Ok(Box::new(prepare(stack, &Options::parse(args)?)?)),
+    #[cfg(feature = "gpu")]
+    gpu: Some(&gpu::HALF),
 };
 
 /// Albedo scaling's options (the table above).
@@ -220,6 +222,93 @@ impl Model for Prepared {
         } else {
             out.fill(0.0);
         }
+    }
+}
+
+/// The GPU half (shaders/albedo_scaling.wgsl, after the single-pass layers).
+#[cfg(feature = "gpu")]
+pub mod gpu {
+    use super::{prepare, Options};
+    use crate::error::Result;
+    use crate::models::common::gpu::{fresnel_code, g2_code, word, words, GpuHalf, Kernel, LAYERS};
+    use crate::models::common::single_pass::gpu_layers;
+    use crate::models::Args;
+    use crate::optics::fresnel::FresnelForm;
+    use crate::stack::Stack;
+    use crate::tables::fgd::{fgd, ETA_MAX, ETA_MIN, KAPPA_MAX, N_ALPHA, N_ETA, N_KAPPA, N_MU};
+    use bytemuck::{Pod, Zeroable};
+
+    pub const HALF: GpuHalf =
+        GpuHalf { shader: &[LAYERS, include_str!("../gpu/shaders/albedo_scaling.wgsl")], refusal: |_| None, kernel };
+
+    /// albedo_scaling.wgsl's `Params`.
+    #[repr(C)]
+    #[derive(Clone, Copy, Pod, Zeroable)]
+    pub struct Params {
+        pub n: u32,
+        pub channels: u32,
+        pub layers: u32,
+        pub g2: u32,
+        pub reciprocal: u32,
+        pub fresnel: u32,
+        pub fresnel_samples: u32,
+        pub pad0: u32,
+        pub fgd_dims: [u32; 4],
+        pub eta_min: f32,
+        pub eta_max: f32,
+        pub kappa_max: f32,
+        pub layers_base: u32,
+    }
+
+    /// The kernel: the parameters, the layers and the FGD table.
+    fn kernel(stack: &Stack, args: &Args) -> Result<Kernel> {
+        let p = prepare(stack, &Options::parse(args)?)?;
+        let (layers, fresnel_samples, _) = gpu_layers(&p.layers, p.channels);
+        let params = Params {
+            n: 0,
+            channels: p.channels as u32,
+            layers: p.layers.len() as u32,
+            g2: g2_code(p.g2),
+            reciprocal: p.reciprocal as u32,
+            fresnel: fresnel_code(FresnelForm::Exact),
+            fresnel_samples,
+            pad0: 0,
+            fgd_dims: [N_MU, N_ALPHA, N_ETA, N_KAPPA].map(|x| x as u32),
+            eta_min: ETA_MIN as f32,
+            eta_max: ETA_MAX as f32,
+            kappa_max: KAPPA_MAX as f32,
+            layers_base: 0,
+        };
+        Ok(Kernel {
+            shader: "albedo_scaling",
+            words: words(&params),
+            count_word: word!(Params, n),
+            arrays: vec![(layers, word!(Params, layers_base))],
+            tables: vec![fgd().data()],
+            channels: p.channels,
+            fit: None,
+        })
+    }
+
+    #[cfg(test)]
+    #[test]
+    fn params_mirror_the_wgsl_struct() {
+        let fields = crate::gpu::tests::fields!(Params {
+            n,
+            channels,
+            layers,
+            g2,
+            reciprocal,
+            fresnel,
+            fresnel_samples,
+            pad0,
+            fgd_dims,
+            eta_min,
+            eta_max,
+            kappa_max,
+            layers_base
+        });
+        crate::gpu::tests::assert_mirrors("albedo_scaling", &fields, std::mem::size_of::<Params>());
     }
 }
 

@@ -38,6 +38,8 @@ pub const INFO: ModelInfo = ModelInfo {
     inputs: &[] as &[InputSpec],
     properties: Properties { reciprocal: true, energy_conserving: true, anisotropic: true, spectral: true },
     prepare: |stack, args| Ok(Box::new(prepare(stack, &Options::parse(args)?)?)),
+    #[cfg(feature = "gpu")]
+    gpu: Some(&gpu::HALF),
 };
 
 /// The exact models' options (the table above).
@@ -221,6 +223,89 @@ fn geometry_in(mf: &Microfacet, form: G2Form, wi: [&[f64]; 3], wo: [&[f64]; 3], 
 pub fn smooth_coat_lambert(albedo: f64, eta: f64, f_int: f64, cos_i: f64, cos_o: f64) -> f64 {
     let t = fresnel::dielectric_transmittance(cos_i, eta) * fresnel::dielectric_transmittance(cos_o, eta);
     albedo * t * FRAC_1_PI / (eta * eta * (1.0 - albedo * f_int))
+}
+
+/// The GPU half (shaders/microfacet.wgsl).
+#[cfg(feature = "gpu")]
+pub mod gpu {
+    use super::{Options, Prepared};
+    use crate::error::Result;
+    use crate::models::common::gpu::{fresnel_code, g2_code, word, words, GpuHalf, GpuMicrofacet, Kernel};
+    use crate::models::Args;
+    use crate::optics::distribution::{Distribution, G2Form, Microfacet};
+    use crate::optics::fresnel::FresnelForm;
+    use crate::stack::Stack;
+    use bytemuck::{Pod, Zeroable};
+
+    pub const HALF: GpuHalf =
+        GpuHalf { shader: &[include_str!("../gpu/shaders/microfacet.wgsl")], refusal: |_| None, kernel };
+
+    /// microfacet.wgsl's `Params`.
+    #[repr(C)]
+    #[derive(Clone, Copy, Pod, Zeroable)]
+    pub struct Params {
+        pub kind: u32,
+        pub g2: u32,
+        pub fresnel: u32,
+        pub channels: u32,
+        pub n: u32,
+        pub sigma: f32,
+        pub pad0: u32,
+        pub pad1: u32,
+        pub mf: GpuMicrofacet,
+        pub base: u32,
+        pub pad2: u32,
+    }
+
+    /// The kernel: the parameters and per channel (eta, k, albedo, f_int).
+    fn kernel(stack: &Stack, args: &Args) -> Result<Kernel> {
+        let smooth = Microfacet::new(Distribution::Ggx, 0.0, 0.0, 0.0);
+        let p = super::prepare(stack, &Options::parse(args)?)?;
+        let (kind, mf, g2, fresnel, sigma, rows): (u32, &Microfacet, G2Form, FresnelForm, f64, Vec<[f64; 4]>) = match &p
+        {
+            Prepared::Conductor { mf, g2, fresnel, eta, k } => {
+                (0, mf, *g2, *fresnel, 0.0, eta.iter().zip(k).map(|(e, k)| [*e, *k, 0.0, 0.0]).collect())
+            }
+            Prepared::Diffuse { albedo, sigma } => {
+                let rows = albedo.iter().map(|a| [0.0, 0.0, *a, 0.0]).collect();
+                (1, &smooth, G2Form::Separable, FresnelForm::Exact, *sigma, rows)
+            }
+            Prepared::CoatLambert { albedo, eta, f_int } => {
+                let rows = (0..albedo.len()).map(|c| [eta[c], 0.0, albedo[c], f_int[c]]).collect();
+                (2, &smooth, G2Form::Separable, FresnelForm::Exact, 0.0, rows)
+            }
+        };
+        let params = Params {
+            kind,
+            g2: g2_code(g2),
+            fresnel: fresnel_code(fresnel),
+            channels: rows.len() as u32,
+            n: 0,
+            sigma: sigma as f32,
+            pad0: 0,
+            pad1: 0,
+            mf: mf.into(),
+            base: 0,
+            pad2: 0,
+        };
+        Ok(Kernel {
+            shader: "microfacet",
+            words: words(&params),
+            count_word: word!(Params, n),
+            channels: rows.len(),
+            arrays: vec![(rows.into_iter().flatten().map(|x| x as f32).collect(), word!(Params, base))],
+            tables: vec![],
+            fit: None,
+        })
+    }
+
+    #[cfg(test)]
+    #[test]
+    fn params_mirror_the_wgsl_struct() {
+        let fields =
+            crate::gpu::tests::fields!(Params { kind, g2, fresnel, channels, n, sigma, pad0, pad1, mf, base, pad2 });
+        crate::gpu::tests::assert_mirrors("microfacet", &fields, std::mem::size_of::<Params>());
+    }
 }
 
 #[cfg(test)]

@@ -73,6 +73,9 @@ pub struct ModelInfo {
     pub properties: Properties,
     /// The model for a stack, its options read from `Args` into the model's own options struct.
     pub prepare: fn(&Stack, &Args) -> Result<Box<dyn Model>>,
+    /// The model's GPU half (common/gpu.rs), if it has one.
+    #[cfg(feature = "gpu")]
+    pub gpu: Option<&'static common::gpu::GpuHalf>,
 }
 
 /// The Monte Carlo reference's entry: its options (the microsurface of every rough boundary) and properties. It is
@@ -84,6 +87,8 @@ pub const REFERENCE: ModelInfo = ModelInfo {
     inputs: &[],
     properties: Properties { reciprocal: true, energy_conserving: true, anisotropic: true, spectral: true },
     prepare: |_, _| value_error("model 'reference' is a Monte Carlo estimator (Stack.reference), not a prepared model"),
+    #[cfg(feature = "gpu")]
+    gpu: None,
 };
 
 /// Every entry a user can name: the analytic models, then the reference.
@@ -119,6 +124,11 @@ pub trait Model: Send + Sync {
     /// Checks which per-element inputs are given (in the order of the model's `inputs`) before an evaluation.
     fn check_inputs(&self, _given: &[bool]) -> Result<()> {
         Ok(())
+    }
+
+    /// The model's transport_fit correction, if it has one (what the GPU applies after the model's own f).
+    fn transport_fit(&self) -> Option<&corrections::transport_fit::TransportFit> {
+        None
     }
 }
 

@@ -95,6 +95,8 @@ pub const INFO: ModelInfo = ModelInfo {
         let opts = Options::parse(args)?;
         transport_fit::apply(opts.transport_fit, Box::new(prepare(stack, &opts)?), stack)
     },
+    #[cfg(feature = "gpu")]
+    gpu: Some(&gpu::HALF),
 };
 
 pub fn prepare(stack: &Stack, opts: &Options) -> Result<Prepared> {
@@ -166,6 +168,106 @@ impl Model for Prepared {
 
     fn specular(&self, wo: DVec3, out: &mut [f64]) {
         self.walk.specular(wo, out)
+    }
+}
+
+/// The GPU half (shaders/steinberg.wgsl, after the single-pass layers and walk).
+#[cfg(feature = "gpu")]
+pub mod gpu {
+    use super::{prepare, Options};
+    use crate::error::Result;
+    use crate::models::common::gpu::{fresnel_code, g2_code, word, words, GpuHalf, Kernel, LAYERS, SINGLE_PASS};
+    use crate::models::common::single_pass::gpu_layers;
+    use crate::models::Args;
+    use crate::stack::Stack;
+    use crate::tables::steinberg::{steinberg, ETA_MAX, ETA_MIN, N_ALPHA, N_ETA, N_MU};
+    use bytemuck::{Pod, Zeroable};
+
+    pub const HALF: GpuHalf = GpuHalf {
+        shader: &[LAYERS, SINGLE_PASS, include_str!("../gpu/shaders/steinberg.wgsl")],
+        refusal: |_| None,
+        kernel,
+    };
+
+    /// steinberg.wgsl's `Params`.
+    #[repr(C)]
+    #[derive(Clone, Copy, Pod, Zeroable)]
+    pub struct Params {
+        pub n: u32,
+        pub channels: u32,
+        pub layers: u32,
+        pub g2: u32,
+        pub fresnel: u32,
+        pub eta2: u32,
+        pub fitted: u32,
+        pub n_mu: u32,
+        pub n_alpha: u32,
+        pub n_eta: u32,
+        pub eta_min: f32,
+        pub eta_max: f32,
+        pub fresnel_samples: u32,
+        pub layers_base: u32,
+        pub microfacet_transmission: u32,
+        pub group: u32,
+    }
+
+    /// The kernel: the parameters, the layers and Steinberg's tables.
+    fn kernel(stack: &Stack, args: &Args) -> Result<Kernel> {
+        let p = prepare(stack, &Options::parse(args)?)?;
+        let walk = &p.walk;
+        let (table, fits) = steinberg().gpu_data();
+        let (layers, fresnel_samples, group) = gpu_layers(&walk.layers, p.channels);
+        let params = Params {
+            n: 0,
+            channels: p.channels as u32,
+            layers: walk.layers.len() as u32,
+            g2: g2_code(walk.g2),
+            fresnel: fresnel_code(walk.fresnel),
+            eta2: walk.eta2 as u32,
+            fitted: p.opts.fitted as u32,
+            n_mu: N_MU as u32,
+            n_alpha: N_ALPHA as u32,
+            n_eta: N_ETA as u32,
+            eta_min: ETA_MIN as f32,
+            eta_max: ETA_MAX as f32,
+            fresnel_samples,
+            layers_base: 0,
+            microfacet_transmission: p.opts.microfacet_transmission as u32,
+            group,
+        };
+        Ok(Kernel {
+            shader: "steinberg",
+            words: words(&params),
+            count_word: word!(Params, n),
+            arrays: vec![(layers, word!(Params, layers_base))],
+            tables: vec![table, fits],
+            channels: p.channels,
+            fit: None,
+        })
+    }
+
+    #[cfg(test)]
+    #[test]
+    fn params_mirror_the_wgsl_struct() {
+        let fields = crate::gpu::tests::fields!(Params {
+            n,
+            channels,
+            layers,
+            g2,
+            fresnel,
+            eta2,
+            fitted,
+            n_mu,
+            n_alpha,
+            n_eta,
+            eta_min,
+            eta_max,
+            fresnel_samples,
+            layers_base,
+            microfacet_transmission,
+            group
+        });
+        crate::gpu::tests::assert_mirrors("steinberg", &fields, std::mem::size_of::<Params>());
     }
 }
 

@@ -35,6 +35,8 @@ pub const INFO: ModelInfo = ModelInfo {
     inputs: &[] as &[InputSpec],
     properties: Properties { reciprocal: true, energy_conserving: true, anisotropic: false, spectral: true },
     prepare: |stack, args| prepare(stack, microsurface(args)?),
+    #[cfg(feature = "gpu")]
+    gpu: Some(&gpu::HALF),
 };
 
 pub struct Prepared {
@@ -227,6 +229,101 @@ impl Model for Prepared {
         if wo.z > 0.0 && self.top.is_none() {
             out.iter_mut().zip(&self.eta).for_each(|(o, &eta)| *o = fresnel::dielectric(wo.z, eta));
         }
+    }
+}
+
+/// The GPU half (shaders/tabulated.wgsl): the same table, interpolated in float32. A single opaque boundary is
+/// `microfacet`'s, as on the CPU.
+#[cfg(feature = "gpu")]
+pub mod gpu {
+    use super::{microsurface, tabulate_stack};
+    use crate::error::Result;
+    use crate::models::common::gpu::{g2_code, word, words, GpuHalf, GpuMicrofacet, Kernel};
+    use crate::models::{microfacet, Args, Value};
+    use crate::optics::distribution::{Distribution, Microfacet};
+    use crate::stack::Stack;
+    use bytemuck::{Pod, Zeroable};
+
+    pub const HALF: GpuHalf =
+        GpuHalf { shader: &[include_str!("../gpu/shaders/tabulated.wgsl")], refusal: |_| None, kernel };
+
+    /// tabulated.wgsl's `Params`.
+    #[repr(C)]
+    #[derive(Clone, Copy, Pod, Zeroable)]
+    pub struct Params {
+        pub n: u32,
+        pub channels: u32,
+        pub g2: u32,
+        pub has_top: u32,
+        pub top: GpuMicrofacet,
+        pub lobes: u32,
+        pub pad0: u32,
+        pub values_base: u32,
+        pub lobes_at: u32,
+        pub albedo_at: u32,
+        pub table_base: u32,
+    }
+
+    /// The kernel: the parameters, the stack's values (the top's η per channel, the inner lobes, the albedo below the
+    /// top per node) and its table; a single boundary's is microfacet's.
+    fn kernel(stack: &Stack, args: &Args) -> Result<Kernel> {
+        if stack.layers.len() == 1 {
+            // microfacet takes the same microsurface options (and its exact Fresnel by default).
+            let given: Vec<(String, Value)> =
+                ["distribution", "g2"].iter().filter_map(|k| Some((k.to_string(), args.get(k)?.clone()))).collect();
+            return (microfacet::gpu::HALF.kernel)(stack, &Args::parse(&microfacet::INFO, &given)?);
+        }
+        let p = tabulate_stack(stack, microsurface(args)?)?;
+        let smooth = Microfacet::new(Distribution::Ggx, 0.0, 0.0, 0.0);
+        let mut values: Vec<f32> = p.eta.iter().map(|&e| e as f32).collect();
+        let lobes_at = values.len();
+        for mf in &p.lobes {
+            let m = GpuMicrofacet::from(mf);
+            values.extend([m.dist as f32, m.smooth_ as f32, m.alpha_x, m.alpha_y, m.cos_phi, m.sin_phi]);
+        }
+        let albedo_at = values.len();
+        values.extend(p.albedo_below_top.iter().map(|&a| a as f32));
+        let params = Params {
+            n: 0,
+            channels: p.eta.len() as u32,
+            g2: g2_code(p.g2),
+            has_top: p.top.is_some() as u32,
+            top: p.top.as_ref().unwrap_or(&smooth).into(),
+            lobes: p.lobes.len() as u32,
+            pad0: 0,
+            values_base: 0,
+            lobes_at: lobes_at as u32,
+            albedo_at: albedo_at as u32,
+            table_base: 0,
+        };
+        Ok(Kernel {
+            shader: "tabulated",
+            words: words(&params),
+            count_word: word!(Params, n),
+            channels: p.eta.len(),
+            arrays: vec![(values, word!(Params, values_base)), (p.table, word!(Params, table_base))],
+            tables: vec![],
+            fit: None,
+        })
+    }
+
+    #[cfg(test)]
+    #[test]
+    fn params_mirror_the_wgsl_struct() {
+        let fields = crate::gpu::tests::fields!(Params {
+            n,
+            channels,
+            g2,
+            has_top,
+            top,
+            lobes,
+            pad0,
+            values_base,
+            lobes_at,
+            albedo_at,
+            table_base
+        });
+        crate::gpu::tests::assert_mirrors("tabulated", &fields, std::mem::size_of::<Params>());
     }
 }
 

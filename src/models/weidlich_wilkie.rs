@@ -93,6 +93,8 @@ pub const INFO: ModelInfo = ModelInfo {
         let opts = Options::parse(args, stack.channels)?;
         transport_fit::apply(opts.transport_fit, Box::new(prepare(stack, &opts)?), stack)
     },
+    #[cfg(feature = "gpu")]
+    gpu: Some(&gpu::HALF),
 };
 
 /// Weidlich–Wilkie's options (the table above).
@@ -361,6 +363,127 @@ impl Patina {
         for (o, b) in out.iter_mut().zip(&bare) {
             *o = (1.0 - w) * b + w * *o;
         }
+    }
+}
+
+/// The GPU half (shaders/weidlich_wilkie.wgsl, after the single-pass layers and walk).
+#[cfg(feature = "gpu")]
+pub mod gpu {
+    use super::{prepare, Options};
+    use crate::error::Result;
+    use crate::models::common::gpu::{fresnel_code, g2_code, word, words, GpuHalf, Kernel, LAYERS, SINGLE_PASS};
+    use crate::models::common::single_pass::gpu_layers;
+    use crate::models::Args;
+    use crate::stack::Stack;
+    use crate::tables::elek::{beckmann_table, D_SIZE};
+    use bytemuck::{Pod, Zeroable};
+
+    pub const HALF: GpuHalf = GpuHalf {
+        shader: &[LAYERS, SINGLE_PASS, include_str!("../gpu/shaders/weidlich_wilkie.wgsl")],
+        refusal: |_| None,
+        kernel,
+    };
+
+    /// weidlich_wilkie.wgsl's `Params`.
+    #[repr(C)]
+    #[derive(Clone, Copy, Pod, Zeroable)]
+    pub struct Params {
+        pub n: u32,
+        pub channels: u32,
+        pub layers: u32,
+        pub g2: u32,
+        pub fresnel: u32,
+        pub eta2: u32,
+        pub fresnel_samples: u32,
+        pub precomputed: u32,
+        pub d_size: u32,
+        pub layers_base: u32,
+        pub group: u32,
+        pub patina: u32,
+        pub patina_at: u32,
+        pub bare_at: u32,
+        pub tint_at: u32,
+        pub tints: u32,
+        pub extent: f32,
+        pub transition: f32,
+        pub bare_alpha_x: f32,
+        pub bare_alpha_y: f32,
+        pub clamp: u32,
+    }
+
+    /// The kernel: the parameters, the layers (with Elek's Fresnel tables when precomputed; then the patina form's
+    /// walks and tint, when the stack has one) and Elek's Beckmann table (one unused value when not precomputed).
+    fn kernel(stack: &Stack, args: &Args) -> Result<Kernel> {
+        let p = prepare(stack, &Options::parse(args, stack.channels)?)?;
+        let (mut layers, fresnel_samples, group) = gpu_layers(&p.walk.layers, p.channels);
+        let beckmann: &'static [f32] = if p.precomputed { beckmann_table().samples() } else { &[0.0] };
+        let mut params = Params {
+            n: 0,
+            channels: p.channels as u32,
+            layers: p.walk.layers.len() as u32,
+            g2: g2_code(p.walk.g2),
+            fresnel: fresnel_code(p.walk.fresnel),
+            eta2: p.walk.eta2 as u32,
+            fresnel_samples,
+            precomputed: p.precomputed as u32,
+            d_size: D_SIZE as u32,
+            layers_base: 0,
+            group,
+            ..Params::zeroed()
+        };
+        if let Some(patina) = &p.patina {
+            params.patina = 1;
+            params.patina_at = layers.len() as u32;
+            layers.extend(gpu_layers(&patina.patina.layers, p.channels).0);
+            params.bare_at = layers.len() as u32;
+            layers.extend(gpu_layers(&patina.bare.layers, p.channels).0);
+            params.tint_at = layers.len() as u32;
+            params.tints = patina.tint.len() as u32;
+            layers.extend(patina.tint.iter().map(|&t| t as f32));
+            params.extent = patina.extent as f32;
+            params.transition = patina.transition as f32;
+            params.bare_alpha_x = patina.bare_alpha.0 as f32;
+            params.bare_alpha_y = patina.bare_alpha.1 as f32;
+            params.clamp = patina.clamp as u32;
+        }
+        Ok(Kernel {
+            shader: "weidlich_wilkie",
+            words: words(&params),
+            count_word: word!(Params, n),
+            arrays: vec![(layers, word!(Params, layers_base))],
+            tables: vec![beckmann],
+            channels: p.channels,
+            fit: None,
+        })
+    }
+
+    #[cfg(test)]
+    #[test]
+    fn params_mirror_the_wgsl_struct() {
+        let fields = crate::gpu::tests::fields!(Params {
+            n,
+            channels,
+            layers,
+            g2,
+            fresnel,
+            eta2,
+            fresnel_samples,
+            precomputed,
+            d_size,
+            layers_base,
+            group,
+            patina,
+            patina_at,
+            bare_at,
+            tint_at,
+            tints,
+            extent,
+            transition,
+            bare_alpha_x,
+            bare_alpha_y,
+            clamp
+        });
+        crate::gpu::tests::assert_mirrors("weidlich_wilkie", &fields, std::mem::size_of::<Params>());
     }
 }
 

@@ -92,7 +92,7 @@ fn option_value(key: &str, v: &Bound<'_, PyAny>) -> PyResult<Value> {
 }
 
 /// The stack, its model prepared with the given options, and the model's catalogue entry.
-fn prepared(
+pub(crate) fn prepared(
     py: Python<'_>,
     layers: &Bound<'_, PyList>,
     ext_ior: f64,
@@ -138,9 +138,9 @@ pub fn reference_surface(options: Option<&Bound<'_, PyDict>>) -> PyResult<Micros
 
 /// The per-element inputs given for a model: (name, array, check) in the order given, and for each of the model's
 /// inputs the index of its array among all inputs (after the `first` direction arrays).
-type Given<'a, 'py> = (Vec<(String, Bound<'py, PyAny>, Kind)>, Vec<Option<usize>>, &'a ModelInfo);
+pub(crate) type Given<'a, 'py> = (Vec<(String, Bound<'py, PyAny>, Kind)>, Vec<Option<usize>>, &'a ModelInfo);
 
-fn given_inputs<'a, 'py>(
+pub(crate) fn given_inputs<'a, 'py>(
     info: &'a ModelInfo,
     model: &dyn models::Model,
     inputs: Option<&Bound<'py, PyDict>>,
@@ -184,34 +184,39 @@ fn call<'a, 'py>(
     Ok((p, stack.channels, all, slot))
 }
 
-/// Whether `device` ("cpu", "gpu" or "auto") means the GPU for `model` with `options` (and per-element inputs when
-/// `inputs`) whose result is float32 anyway when `float32`; `model` None: Oat's materials, which the GPU always
-/// takes. The rule is device.rs's; ValueError / RuntimeError where "gpu" cannot be had.
+/// Whether `device` ("cpu", "gpu" or "auto") means the GPU for `model` with `options` whose result is float32 anyway
+/// when `float32`; `model` None: Oat's materials, which the GPU always takes. The rule is device.rs's; ValueError /
+/// RuntimeError where "gpu" cannot be had.
 #[pyfunction]
-#[pyo3(signature = (device, model=None, options=None, inputs=false, float32=true))]
+#[pyo3(signature = (device, model=None, options=None, float32=true))]
 pub fn use_gpu(
     py: Python<'_>,
     device: &str,
     model: Option<&str>,
     options: Option<&Bound<'_, PyDict>>,
-    inputs: bool,
     float32: bool,
 ) -> PyResult<bool> {
     let args = model.map(|m| parse_options(m, options)).transpose()?;
     let refusal = || -> Option<String> {
         let (m, (_, args)) = (model?, args.as_ref()?);
-        gpu_refusal(m, args, inputs)
+        gpu_refusal(m, args)
     };
     // The first call may create the GPU's device (seconds): without Python's lock.
     Ok(py.detach(|| crate::device::choose(device, refusal, float32))?)
 }
 
 #[cfg(feature = "gpu")]
-use crate::gpu::refusal as gpu_refusal;
+use crate::gpu::{refusal as gpu_refusal, support as gpu_support};
+
+/// Without the GPU path no model runs there.
+#[cfg(not(feature = "gpu"))]
+fn gpu_support(_: &str) -> String {
+    "no (built without the gpu feature)".into()
+}
 
 /// Without the GPU path there is no adapter, so device::choose never asks.
 #[cfg(not(feature = "gpu"))]
-fn gpu_refusal(_: &str, _: &Args, _: bool) -> Option<String> {
+fn gpu_refusal(_: &str, _: &Args) -> Option<String> {
     None
 }
 
@@ -235,7 +240,7 @@ pub fn cache_root() -> Option<std::path::PathBuf> {
     crate::cache::root()
 }
 
-/// The catalogue: one dict per model (name, summary, options, inputs, properties).
+/// The catalogue: one dict per model (name, summary, options, inputs, properties, and its word on the GPU).
 #[pyfunction]
 #[pyo3(name = "models")]
 pub fn catalogue<'py>(py: Python<'py>) -> PyResult<Vec<Bound<'py, PyDict>>> {
@@ -293,6 +298,7 @@ pub fn catalogue<'py>(py: Python<'py>) -> PyResult<Vec<Bound<'py, PyDict>>> {
             props.set_item("anisotropic", p.anisotropic)?;
             props.set_item("spectral", p.spectral)?;
             d.set_item("properties", props)?;
+            d.set_item("gpu", gpu_support(m.name))?;
             Ok(d)
         })
         .collect()

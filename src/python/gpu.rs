@@ -1,11 +1,11 @@
 //! Bindings of the wgpu path (src/gpu): the adapter, and evaluation on it. Directions are checked and normalised
 //! on the CPU as for `eval` (arrays.rs), then evaluated on the GPU in float32.
 
-use super::api::{parse_options, parse_stack};
+use super::api::{given_inputs, parse_options, parse_stack, prepared, prepared_model};
 use super::arrays::{batch, Kind};
 use super::oat::OatMaterial;
 use crate::gpu;
-use crate::render::{pinhole, Shape};
+use crate::render::{pinhole, Shape, Texture};
 use numpy::{PyArrayDyn, PyArrayMethods, PyReadonlyArray3, PyUntypedArrayMethods};
 use pyo3::exceptions::PyRuntimeError;
 use pyo3::prelude::*;
@@ -34,21 +34,42 @@ pub fn _gpu_lose_after(dispatches: i64) -> PyResult<()> {
 /// The models with a GPU implementation.
 #[pyfunction]
 pub fn gpu_models() -> Vec<&'static str> {
-    gpu::MODELS.iter().map(|(name, _)| *name).collect()
+    gpu::models()
 }
 
-/// Two checked (already broadcast) arrays of 3-vectors (directions normalised) as float32 rows of 6, and the batch
-/// shape.
-fn pairs<'py>(py: Python<'py>, arrays: [(&str, &Bound<'py, PyAny>, Kind); 2]) -> PyResult<(Vec<f32>, Vec<usize>)> {
-    let pairs = batch(py, &arrays, 6, |r, o| {
-        o[..3].copy_from_slice(&r[0]);
-        o[3..].copy_from_slice(&r[1]);
+/// The pairs of a query (float32 rows of 6), its per-element inputs (`gpu::run`'s) and the batch shape.
+type Elements = (Vec<f32>, Vec<Option<Texture>>, Vec<usize>);
+
+/// Checked (already broadcast) arrays as float32: the first two, 3-vectors (directions normalised), as rows of 6; each
+/// of the model's per-element inputs (`slot`: its array's index, or None) as a texture of one row of n texels; and the
+/// batch shape.
+fn elements<'py>(
+    py: Python<'py>,
+    arrays: &[(&str, &Bound<'py, PyAny>, Kind)],
+    slot: &[Option<usize>],
+) -> PyResult<Elements> {
+    let widths: Vec<usize> = arrays.iter().map(|(_, _, k)| k.width()).collect();
+    let rows = batch(py, arrays, widths.iter().sum(), |r, o| {
+        let mut at = 0;
+        for (row, w) in r.iter().zip(&widths) {
+            o[at..at + w].copy_from_slice(&row[..*w]);
+            at += w;
+        }
     })?;
-    let pairs = pairs.call_method1("astype", ("float32",))?;
-    let pairs = pairs.cast::<PyArrayDyn<f32>>()?;
-    let shape = pairs.shape()[..pairs.ndim() - 1].to_vec();
-    let flat = pairs.readonly().as_slice()?.to_vec();
-    Ok((flat, shape))
+    let rows = rows.call_method1("astype", ("float32",))?;
+    let rows = rows.cast::<PyArrayDyn<f32>>()?;
+    let shape = rows.shape()[..rows.ndim() - 1].to_vec();
+    let flat = rows.readonly().as_slice()?.to_vec();
+    let k: usize = widths.iter().sum();
+    let n = flat.len() / k;
+    let column = |j: usize| {
+        let (at, w) = (widths[..j].iter().sum::<usize>(), widths[j]);
+        let data = flat.chunks_exact(k).flat_map(|r| r[at..at + w].iter().map(|&x| x as f64)).collect();
+        Texture { width: n, height: 1, comps: w, data }
+    };
+    let inputs = slot.iter().map(|j| j.map(column)).collect();
+    let pairs = flat.chunks_exact(k).flat_map(|r| r[..6].iter().copied()).collect();
+    Ok((pairs, inputs, shape))
 }
 
 /// Seconds per evaluation of the pairs with everything resident on the device (gpu::resident_seconds).
@@ -67,13 +88,20 @@ pub fn gpu_resident_seconds<'py>(
 ) -> PyResult<f64> {
     let stack = parse_stack(layers, ext_ior)?;
     let (_, args) = parse_options(model, options)?;
-    let (flat, _) = pairs(py, [("wi", wi, Kind::Direction), ("wo", wo, Kind::Direction)])?;
+    let (flat, _, _) = elements(py, &[("wi", wi, Kind::Direction), ("wo", wo, Kind::Direction)], &[])?;
     Ok(py.detach(|| gpu::resident_seconds(model, &stack, &args, &flat, repeats))?)
 }
 
-/// f(wi, wo) on the GPU: (..., channels) float32, for (already broadcast) directions (..., 3).
+/// Seconds to read `bytes` back from the device (gpu::readback_seconds).
 #[pyfunction]
-#[pyo3(signature = (layers, ext_ior, model, wi, wo, options=None))]
+pub fn gpu_readback_seconds(py: Python<'_>, bytes: usize, repeats: usize) -> PyResult<f64> {
+    Ok(py.detach(|| gpu::readback_seconds(bytes, repeats))?)
+}
+
+/// f(wi, wo) on the GPU: (..., channels) float32, for (already broadcast) directions (..., 3) and per-element inputs.
+#[pyfunction]
+#[pyo3(signature = (layers, ext_ior, model, wi, wo, options=None, inputs=None))]
+#[allow(clippy::too_many_arguments)]
 pub fn eval_gpu<'py>(
     py: Python<'py>,
     layers: &Bound<'py, PyList>,
@@ -82,6 +110,7 @@ pub fn eval_gpu<'py>(
     wi: &Bound<'py, PyAny>,
     wo: &Bound<'py, PyAny>,
     options: Option<&Bound<'py, PyDict>>,
+    inputs: Option<&Bound<'py, PyDict>>,
 ) -> PyResult<Bound<'py, PyAny>> {
     query(
         py,
@@ -91,12 +120,15 @@ pub fn eval_gpu<'py>(
         model,
         [("wi", wi, Kind::Direction), ("wo", wo, Kind::Direction)],
         options,
+        inputs,
     )
 }
 
-/// Stack.sample on the GPU: (..., 3 + channels + 1) float32 rows (wi, weight, pdf) for (already broadcast) wo and u.
+/// Stack.sample on the GPU: (..., 3 + channels + 1) float32 rows (wi, weight, pdf) for (already broadcast) wo and u
+/// and per-element inputs.
 #[pyfunction]
-#[pyo3(signature = (layers, ext_ior, model, wo, u, options=None))]
+#[pyo3(signature = (layers, ext_ior, model, wo, u, options=None, inputs=None))]
+#[allow(clippy::too_many_arguments)]
 pub fn sample_gpu<'py>(
     py: Python<'py>,
     layers: &Bound<'py, PyList>,
@@ -105,6 +137,7 @@ pub fn sample_gpu<'py>(
     wo: &Bound<'py, PyAny>,
     u: &Bound<'py, PyAny>,
     options: Option<&Bound<'py, PyDict>>,
+    inputs: Option<&Bound<'py, PyDict>>,
 ) -> PyResult<Bound<'py, PyAny>> {
     query(
         py,
@@ -114,6 +147,7 @@ pub fn sample_gpu<'py>(
         model,
         [("wo", wo, Kind::Direction), ("u", u, Kind::Range(3, 0.0, 1.0))],
         options,
+        inputs,
     )
 }
 
@@ -137,41 +171,57 @@ pub fn pdf_gpu<'py>(
         model,
         [("wi", wi, Kind::Direction), ("wo", wo, Kind::Direction)],
         options,
+        None,
     )
 }
 
-/// A per-element query of `model` on the GPU for two checked arrays: (..., query.width(channels)) float32.
+/// A per-element query of `model` on the GPU for two checked arrays and the model's per-element inputs (checked
+/// against its catalogue entry and its prepared model, as on the CPU): (..., query.width(channels)) float32.
+#[allow(clippy::too_many_arguments)]
 fn query<'py>(
     py: Python<'py>,
     query: gpu::Query,
     layers: &Bound<'py, PyList>,
     ext_ior: f64,
     model: &str,
-    arrays: [(&str, &Bound<'py, PyAny>, Kind); 2],
+    first: [(&str, &Bound<'py, PyAny>, Kind); 2],
     options: Option<&Bound<'py, PyDict>>,
+    inputs: Option<&Bound<'py, PyDict>>,
 ) -> PyResult<Bound<'py, PyAny>> {
     let stack = parse_stack(layers, ext_ior)?;
     let (_, args) = parse_options(model, options)?;
-    if let Some(why) = gpu::refusal(model, &args, false) {
+    if let Some(why) = gpu::refusal(model, &args) {
         return Err(pyo3::exceptions::PyValueError::new_err(why));
     }
-    let (flat, mut shape) = pairs(py, arrays)?;
-    let values = py.detach(|| gpu::run(query, model, &stack, &args, &flat))?;
+    let (given, slot) = match inputs.filter(|d| !d.is_empty()) {
+        Some(d) => {
+            let (_, p, info) = prepared(py, layers, ext_ior, model, options)?;
+            let (given, slot, _) = given_inputs(info, &*p, Some(d), 2)?;
+            (given, slot)
+        }
+        None => (Vec::new(), Vec::new()),
+    };
+    let mut arrays = first.to_vec();
+    arrays.extend(given.iter().map(|(n, a, k)| (n.as_str(), a, *k)));
+    let (flat, textures, mut shape) = elements(py, &arrays, &slot)?;
+    let values = py.detach(|| gpu::run(query, model, &stack, &args, &flat, &textures))?;
     shape.push(query.width(stack.channels));
     numpy::PyArray1::from_vec(py, values).reshape(shape).map(|a| a.into_any())
 }
 
-/// Renders stacks on the GPU: (stacks, height, width, 3) float32. `stacks` is a list of (layers, ext_ior); `shape`
-/// "sphere", "plane" or a mesh; `camera` None (orthographic) or (origin, target, fov in radians); `lights` (kind,
-/// vector, rgb) and `env` (None or (map, scale, rotation), sampled `spp` times per pixel from `seed`) as for render.
+/// Renders stacks on the GPU: (stacks, height, width, 3) float32. `stacks` is a list of (layers, ext_ior); `textures`
+/// maps the model's per-element inputs to (h, w, c) arrays looked up by uv; `shape` "sphere", "plane" or a mesh;
+/// `camera` None (orthographic) or (origin, target, fov in radians); `lights` (kind, vector, rgb) and `env` (None or
+/// (map, scale, rotation), sampled `spp` times per pixel from `seed`) as for render.
 #[pyfunction]
-#[pyo3(signature = (stacks, model, options, shape, camera, lights, width, height, env=None, spp=1, seed=0))]
+#[pyo3(signature = (stacks, model, options, textures, shape, camera, lights, width, height, env=None, spp=1, seed=0))]
 #[allow(clippy::too_many_arguments)]
 pub fn render_gpu<'py>(
     py: Python<'py>,
     stacks: &Bound<'py, PyList>,
     model: &str,
     options: Option<&Bound<'py, PyDict>>,
+    textures: Option<&Bound<'py, PyDict>>,
     shape: &Bound<'py, PyAny>,
     camera: Option<([f64; 3], [f64; 3], f64)>,
     lights: Vec<(String, [f64; 3], [f64; 3])>,
@@ -181,15 +231,24 @@ pub fn render_gpu<'py>(
     spp: usize,
     seed: u64,
 ) -> PyResult<Bound<'py, PyAny>> {
-    let (_, args) = parse_options(model, options)?;
+    let (info, args) = parse_options(model, options)?;
+    let mut slots: Vec<Option<Texture>> = info.inputs.iter().map(|_| None).collect();
+    for (name, a) in textures.into_iter().flat_map(|d| d.iter()) {
+        slots[info.input(&name.extract::<String>()?)?] = Some(super::render::texture(a.extract()?)?);
+    }
+    let given: Vec<bool> = slots.iter().map(|s| s.is_some()).collect();
     let mut parsed = Vec::new();
     for item in stacks.iter() {
         let (layers, ext_ior): (Bound<'py, PyList>, f64) = item.extract()?;
-        parsed.push(parse_stack(&layers, ext_ior)?);
+        let stack = parse_stack(&layers, ext_ior)?;
+        if given.contains(&true) {
+            prepared_model(py, &stack, model, options)?.0.check_inputs(&given)?;
+        }
+        parsed.push(stack);
     }
     let mut scene = scene(shape, camera, lights, width, height)?;
     scene.env = env.map(super::render::environment).transpose()?.map(|e| e.gpu_data(spp, seed));
-    let image = py.detach(|| gpu::render(model, &parsed, &args, &scene))?;
+    let image = py.detach(|| gpu::render(model, &parsed, &args, &scene, &slots))?;
     numpy::PyArray1::from_vec(py, image).reshape([parsed.len(), height, width, 3]).map(|a| a.into_any())
 }
 

@@ -74,6 +74,7 @@ fn _lamina(m: &Bound<'_, PyModule>) -> PyResult<()> {
         m.add_function(wrap_pyfunction!(gpu::sample_gpu, m)?)?;
         m.add_function(wrap_pyfunction!(gpu::pdf_gpu, m)?)?;
         m.add_function(wrap_pyfunction!(gpu::gpu_resident_seconds, m)?)?;
+        m.add_function(wrap_pyfunction!(gpu::gpu_readback_seconds, m)?)?;
         m.add_function(wrap_pyfunction!(gpu::render_gpu, m)?)?;
         m.add_function(wrap_pyfunction!(gpu::render_oat_gpu, m)?)?;
     }

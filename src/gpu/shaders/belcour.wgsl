@@ -37,7 +37,6 @@ var<private> params: Params;
 
 const FRAC_PI_2: f32 = 1.5707963267949;
 const FRAC_PI_4: f32 = 0.785398163397448;
-const MIN_ALPHA: f32 = 1e-4;
 
 // table::pseudo_angle: a monotonic stand-in for the azimuth modulo π (Rajan et al. 2006), in [0, π).
 fn pseudo_angle(x_in: f32, y_in: f32) -> f32 {
@@ -117,7 +116,7 @@ fn eigen_frame(xx: f32, xy: f32, yy: f32) -> vec4<f32> {
 
 // Microfacet::with_frame: GGX of roughness (αx, αy) along the frame (cos, sin); (0, 0) is a Dirac interface.
 fn ggx(ax: f32, ay: f32, cos_phi: f32, sin_phi: f32) -> Microfacet {
-    return Microfacet(0u, u32(ax == 0.0 && ay == 0.0), max(ax, MIN_ALPHA), max(ay, MIN_ALPHA), cos_phi, sin_phi);
+    return mf_with_alpha(Microfacet(0u, 0u, 0.0, 0.0, cos_phi, sin_phi), ax, ay);
 }
 
 // symmetric_cosine: |wo·h| (Belcour 2018 §6), wo·n where wi + wo is too short to normalise.

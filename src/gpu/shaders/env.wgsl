@@ -133,6 +133,7 @@ fn power_heuristic(pdf: f32, other: f32) -> f32 {
 // the environment and of the BSDF combined by MIS, at a hit seen along d. Every direction is evaluated at one call of
 // eval_pair (scratch at `base`), so that the model's code is compiled into the kernel once.
 fn shade_env(hit: Hit, d: vec3<f32>, base: u32, px: u32) -> vec3<f32> {
+    load_texture_inputs(hit.uv);
     var rgb = vec3<f32>(0.0);
     let b = cross(hit.n, hit.t);
     let wo = vec3<f32>(dot(-d, hit.t), dot(-d, b), dot(-d, hit.n));
@@ -143,7 +144,7 @@ fn shade_env(hit: Hit, d: vec3<f32>, base: u32, px: u32) -> vec3<f32> {
     for (var ch = 0u; ch < 3u; ch++) {
         rgb[ch] += specular(wo, ch) * mirror[ch];
     }
-    proposals(wo);
+    fitted_proposals(wo);
     var state = pcg(ep.seed ^ pcg(px));
     let spp = max(ep.spp, 1u);
     // Directions 0 .. lights are the lights; then per sample the environment's, then the BSDF's.
@@ -172,7 +173,7 @@ fn shade_env(hit: Hit, d: vec3<f32>, base: u32, px: u32) -> vec3<f32> {
             }
         }
         if wi.z > 0.0 && any(scale != vec3<f32>(0.0)) {
-            eval_pair(wi, wo, base);
+            eval_fitted(wi, wo, base);
             rgb += vec3<f32>(out[base], out[base + 1u], out[base + 2u]) * scale;
         }
     }

@@ -8,7 +8,7 @@
 // cosines) and Elek's Fresnel table, (F, 1 − F) at each of params.fresnel_samples nodes (none without).
 @group(0) @binding(1) var<storage, read> layers: array<f32>;
 
-const HEADER: u32 = 9u;
+const HEADER: u32 = 10u;
 const INTERREFLECTION_NODES: u32 = 8u;  // single_pass::INTERREFLECTION_NODES
 const PER_CHANNEL: u32 = 5u + INTERREFLECTION_NODES;
 const DIELECTRIC: u32 = 0u;
@@ -18,15 +18,25 @@ struct Layer {
     kind: u32,
     mf: Microfacet,
     thickness: f32,
-    sigma: f32,  // Oren–Nayar σ of a diffuse base
-    at: u32,     // where its channel values start
+    sigma: f32,     // Oren–Nayar σ of a diffuse base
+    mean_eta: f32,  // η's mean over the channels (the sampling mixture refracts at it)
+    at: u32,        // where its channel values start
+    // Under a patina (single_pass.wgsl's walk state): PATINA_TOP or PATINA_BASE, the patina's coverage w and where
+    // the top's channel values start; PLAIN and 1 otherwise.
+    role: u32,
+    w: f32,
+    top_at: u32,
 }
+
+const PLAIN: u32 = 0u;
+const PATINA_TOP: u32 = 1u;
+const PATINA_BASE: u32 = 2u;
 
 // SpLayer: layer l of the stack.
 fn sp_layer(l: u32) -> Layer {
     let at = params.layers_base + l * (HEADER + channel_stride() * params.channels);
     let mf = Microfacet(u32(layers[at + 1u]), u32(layers[at + 2u]), layers[at + 3u], layers[at + 4u], layers[at + 5u], layers[at + 6u]);
-    return Layer(u32(layers[at]), mf, layers[at + 7u], layers[at + 8u], at + HEADER);
+    return Layer(u32(layers[at]), mf, layers[at + 7u], layers[at + 8u], layers[at + 9u], at + HEADER, PLAIN, 1.0, 0u);
 }
 
 // Per-channel values of a layer: η, κ, σt, albedo (single-scattering, or the diffuse base's), gain.
@@ -41,17 +51,27 @@ fn channel_stride() -> u32 {
     return PER_CHANNEL + 2u * params.fresnel_samples;
 }
 
+// Under a patina of coverage w (weidlich_wilkie::Patina::eval) the top's relative η goes from 1 (no layer) to its own,
+// 1 + w (η − 1), and the base's η and κ follow the medium above: × η_top / (1 + w (η_top − 1)).
 fn value(layer: Layer, ch: u32, which: u32) -> f32 {
-    return layers[layer.at + ch * channel_stride() + which];
+    let v = layers[layer.at + ch * channel_stride() + which];
+    if layer.role == PATINA_TOP && which == ETA {
+        return 1.0 + layer.w * (v - 1.0);
+    }
+    if layer.role == PATINA_BASE && (which == ETA || which == KAPPA) {
+        let e = layers[layer.top_at + ch * channel_stride() + ETA];
+        return v * e / (1.0 + layer.w * (e - 1.0));
+    }
+    return v;
 }
 
 // single_pass::node_lerp of a conductor base's inter-reflection table g (0 without the correction): linear between its
-// nodes.
+// nodes; under a patina, scaled by its coverage (as Patina::eval scales the table).
 fn interreflected_at(layer: Layer, ch: u32, mu: f32) -> f32 {
     let x = clamp(mu, 0.0, 1.0) * f32(INTERREFLECTION_NODES - 1u);
     let j = min(u32(x), INTERREFLECTION_NODES - 2u);
     let at = layer.at + ch * channel_stride() + INTERREFLECTED + j;
-    return layers[at] + (x - f32(j)) * (layers[at + 1u] - layers[at]);
+    return layer.w * (layers[at] + (x - f32(j)) * (layers[at + 1u] - layers[at]));
 }
 
 // single_pass::interreflected: g(μi) g(μo).

@@ -18,13 +18,6 @@ fn vertex_uv(v: u32) -> vec2<f32> {
     return vec2<f32>(vertices[VERTEX * v + 6u], vertices[VERTEX * v + 7u]);
 }
 
-// sampling::orthonormal_basis's first vector (Duff et al. 2017).
-fn basis_tangent(n: vec3<f32>) -> vec3<f32> {
-    let sign = select(-1.0, 1.0, n.z >= 0.0);
-    let a = -1.0 / (sign + n.z);
-    return vec3<f32>(1.0 + sign * n.x * n.x * a, sign * n.x * n.y * a, -sign * n.x);
-}
-
 // Mesh::surface: triangle k's point at barycentrics b, with its normal, tangent (Gram–Schmidt against the normal;
 // ŷ × n where the tangents vanish) and uv, interpolated.
 fn surface(k: u32, b: vec3<f32>) -> Hit {
@@ -37,7 +30,7 @@ fn surface(k: u32, b: vec3<f32>) -> Hit {
         t = normalize(t);
     } else {
         t = cross(vec3<f32>(0.0, 1.0, 0.0), n);
-        t = select(basis_tangent(n), normalize(t), dot(t, t) > 1e-20);
+        t = select(orthonormal_basis(n)[0], normalize(t), dot(t, t) > 1e-20);
     }
     let uv = b.x * vertex_uv(v.x) + b.y * vertex_uv(v.y) + b.z * vertex_uv(v.z);
     return Hit(true, p, n, t, uv);

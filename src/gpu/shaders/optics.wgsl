@@ -155,6 +155,25 @@ struct Microfacet {
     sin_phi: f32,
 }
 
+const MIN_ALPHA: f32 = 1e-4;  // distribution::MIN_ALPHA
+
+// Microfacet::with_alpha: the same distribution and frame at roughness (αx, αy), a Dirac interface at (0, 0).
+fn mf_with_alpha(mf: Microfacet, alpha_x: f32, alpha_y: f32) -> Microfacet {
+    let smooth_ = u32(alpha_x == 0.0 && alpha_y == 0.0);
+    return Microfacet(mf.dist, smooth_, max(alpha_x, MIN_ALPHA), max(alpha_y, MIN_ALPHA), mf.cos_phi, mf.sin_phi);
+}
+
+// sampling::orthonormal_basis: two tangents completing the unit normal n (Duff et al. 2017).
+fn orthonormal_basis(n: vec3<f32>) -> array<vec3<f32>, 2> {
+    let sign = select(-1.0, 1.0, n.z >= 0.0);
+    let a = -1.0 / (sign + n.z);
+    let b = n.x * n.y * a;
+    return array<vec3<f32>, 2>(
+        vec3<f32>(1.0 + sign * n.x * n.x * a, sign * b, -sign * n.x),
+        vec3<f32>(b, sign + n.y * n.y * a, -n.y),
+    );
+}
+
 // libm's erf as Abramowitz & Stegun 7.1.26 (|error| < 1.5e-7), for Beckmann's Λ.
 fn erf(x: f32) -> f32 {
     let t = 1.0 / (1.0 + 0.3275911 * abs(x));

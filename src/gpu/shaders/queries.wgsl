@@ -1,6 +1,8 @@
 // The per-element kernels of every model (gpu::Query): eval, sample and pdf over n elements, each a row of two
 // vectors in `pairs` ((wi, wo), or (wo, u) for sample). Composed after the model, which declares `params` (n,
-// channels) of its one stack in `stack_params`, `pairs`, `out`, `eval_pair` and `proposals`.
+// channels) of its one stack in `stack_params`, `pairs`, `out`, `eval_pair` and `proposals`, and fit.wgsl, which wraps
+// the last two in lamina's correction transport_fit where the stack has it; the per-element inputs (inputs.wgsl) are
+// element i's.
 
 // Vector `which` (0 or 1) of element i.
 fn load(i: u32, which: u32) -> vec3<f32> {
@@ -12,9 +14,11 @@ fn load(i: u32, which: u32) -> vec3<f32> {
 @compute @workgroup_size(64)
 fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     params = stack_params[0];
+    fit = fit_stacks[0];
     let i = gid.x;
     if i < params.n {
-        eval_pair(load(i, 0u), load(i, 1u), i * params.channels);
+        load_element_inputs(i);
+        eval_fitted(load(i, 0u), load(i, 1u), i * params.channels);
     }
 }
 
@@ -23,19 +27,21 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
 @compute @workgroup_size(64)
 fn sample_main(@builtin(global_invocation_id) gid: vec3<u32>) {
     params = stack_params[0];
+    fit = fit_stacks[0];
     let i = gid.x;
     if i >= params.n {
         return;
     }
     let wo = load(i, 0u);
     let base = i * (params.channels + 4u);
+    load_element_inputs(i);
     var s = vec4<f32>(0.0, 0.0, 1.0, 0.0);
     if wo.z > 0.0 {
-        proposals(wo);
+        fitted_proposals(wo);
         s = sample_mixture(wo, load(i, 1u));
     }
     if s.w > 0.0 {
-        eval_pair(s.xyz, wo, base + 3u);
+        eval_fitted(s.xyz, wo, base + 3u);
     }
     for (var ch = 0u; ch < params.channels; ch++) {
         out[base + 3u + ch] = select(0.0, out[base + 3u + ch] * weight_factor(s.xyz, s.w), s.w > 0.0);
@@ -50,6 +56,7 @@ fn sample_main(@builtin(global_invocation_id) gid: vec3<u32>) {
 @compute @workgroup_size(64)
 fn pdf_main(@builtin(global_invocation_id) gid: vec3<u32>) {
     params = stack_params[0];
+    fit = fit_stacks[0];
     let i = gid.x;
     if i >= params.n {
         return;
@@ -58,7 +65,7 @@ fn pdf_main(@builtin(global_invocation_id) gid: vec3<u32>) {
     let wo = load(i, 1u);
     var p = 0.0;
     if wo.z > 0.0 {
-        proposals(wo);
+        fitted_proposals(wo);
         p = mixture_pdf(wi, wo);
     }
     out[i] = p;

@@ -3,8 +3,10 @@
 // Σ f(l, v) max(0, n·l) E over directional and point lights, f from the model's eval_pair. Composed after
 // optics.wgsl, a model's shader (whose `out` serves as each pixel's scratch), scene.wgsl and mesh.wgsl.
 
-// Σ f(l, v) max(0, n·l) E at a hit seen along d, f from the model's eval_pair (scratch at `base`).
+// Σ f(l, v) max(0, n·l) E at a hit seen along d, f from the model's eval_pair and transport_fit (scratch at `base`),
+// with the per-element inputs' textures at the hit's uv.
 fn shade_lights(hit: Hit, d: vec3<f32>, base: u32) -> vec3<f32> {
+    load_texture_inputs(hit.uv);
     var rgb = vec3<f32>(0.0);
     let b = cross(hit.n, hit.t);
     let wo = vec3<f32>(dot(-d, hit.t), dot(-d, b), dot(-d, hit.n));
@@ -13,7 +15,7 @@ fn shade_lights(hit: Hit, d: vec3<f32>, base: u32) -> vec3<f32> {
         let l = light[0];
         let wi = vec3<f32>(dot(l, hit.t), dot(l, b), dot(l, hit.n));
         if wi.z > 0.0 && wo.z > 0.0 {
-            eval_pair(wi, wo, base);
+            eval_fitted(wi, wo, base);
             rgb += vec3<f32>(out[base], out[base + 1u], out[base + 2u]) * wi.z * light[1];
         }
     }
@@ -28,6 +30,7 @@ fn begin(t: u32) -> u32 {
         return pixels;
     }
     params = stack_params[t / pixels];
+    fit = fit_stacks[t / pixels];
     return t % pixels;
 }
 

@@ -19,7 +19,7 @@ struct Params {
     fresnel_samples: u32,  // 0: no Fresnel tables
     layers_base: u32,      // where the stack's layers start in `layers`
     microfacet_transmission: u32,
-    pad2: u32,
+    group: u32,            // channels a pass walks at once (single_pass.wgsl)
 }
 
 // Every stack's parameters (one for per-element queries; one per stack in a batched render, gpu::batched) and, in
@@ -111,4 +111,9 @@ fn passage(layer: Layer, wi: vec3<f32>, wo: vec3<f32>, ch: u32) -> Passage {
     let i = transmission(layer.mf, wi, eta);
     let o = transmission(layer.mf, wo, eta);
     return Passage(i.x, o.x, o.x, refracted_up(wi, i.y), refracted_up(wo, o.y), true);
+}
+
+// f(wi, wo) of every channel into out[base..]: the walk.
+fn eval_pair(wi: vec3<f32>, wo: vec3<f32>, base: u32) {
+    eval_walk(wi, wo, base);
 }

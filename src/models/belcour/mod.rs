@@ -77,6 +77,8 @@ pub const INFO: ModelInfo = ModelInfo {
         let opts = Options::parse(args)?;
         transport_fit::apply(opts.transport_fit, Box::new(prepare(stack, &opts)?), stack)
     },
+    #[cfg(feature = "gpu")]
+    gpu: Some(&gpu::HALF),
 };
 
 /// Belcour's options (the table above). Where the paper and the reference code disagree, each choice is an option,
@@ -310,6 +312,116 @@ fn symmetric_cosine(wi: DVec3, wo: DVec3) -> f64 {
         c
     } else {
         wo.z
+    }
+}
+
+/// The GPU half (shaders/belcour.wgsl): the interpolated adding-doubling (`interpolated=True`).
+#[cfg(feature = "gpu")]
+pub mod gpu {
+    use super::{prepare, Options};
+    use crate::error::{value_error, Result};
+    use crate::models::common::gpu::{g2_code, word, words, GpuHalf, Kernel};
+    use crate::models::Args;
+    use crate::stack::Stack;
+    use bytemuck::{Pod, Zeroable};
+
+    pub const HALF: GpuHalf = GpuHalf {
+        shader: &[include_str!("../../gpu/shaders/belcour.wgsl")],
+        refusal: |args| {
+            (args.flag("interpolated") == Ok(false))
+                .then(|| "model 'belcour' with interpolated=False runs on the CPU only; use device='cpu'".into())
+        },
+        kernel,
+    };
+
+    /// belcour.wgsl's `Params`.
+    #[repr(C)]
+    #[derive(Clone, Copy, Pod, Zeroable)]
+    pub struct Params {
+        pub n: u32,
+        pub channels: u32,
+        pub lobes: u32,
+        pub nodes: u32,
+        pub azimuths: u32,
+        pub width: u32,
+        pub g2: u32,
+        pub symmetric: u32,
+        pub has_diffuse: u32,
+        pub diffuse_eta: f32,
+        pub pad0: u32,
+        pub pad1: u32,
+        pub record_base: u32,
+        pub t_down_base: u32,
+        pub t_up_base: u32,
+        pub diffuse_base: u32,
+    }
+
+    /// The kernel: the parameters, the table and the diffuse base.
+    fn kernel(stack: &Stack, args: &Args) -> Result<Kernel> {
+        let p = prepare(stack, &Options::parse(args)?)?;
+        let Some(d) = p.gpu_data() else {
+            return value_error("model 'belcour' with interpolated=False runs on the CPU only; use device='cpu'");
+        };
+        let [lobes, nodes, azimuths, width, channels] = d.shape.map(|x| x as u32);
+        let (diffuse, eta) = d.diffuse.unwrap_or((vec![], 1.0));
+        let f32s = |v: &[f64]| v.iter().map(|&x| x as f32).collect::<Vec<f32>>();
+        let params = Params {
+            n: 0,
+            channels,
+            lobes,
+            nodes,
+            azimuths,
+            width,
+            g2: g2_code(d.g2),
+            symmetric: d.symmetric as u32,
+            has_diffuse: !diffuse.is_empty() as u32,
+            diffuse_eta: eta as f32,
+            pad0: 0,
+            pad1: 0,
+            record_base: 0,
+            t_down_base: 0,
+            t_up_base: 0,
+            diffuse_base: 0,
+        };
+        let diffuse: Vec<f32> = diffuse.iter().flatten().map(|&x| x as f32).collect();
+        Ok(Kernel {
+            shader: "belcour",
+            words: words(&params),
+            count_word: word!(Params, n),
+            arrays: vec![
+                (f32s(d.record), word!(Params, record_base)),
+                (f32s(d.t_down), word!(Params, t_down_base)),
+                (f32s(d.t_up), word!(Params, t_up_base)),
+                (diffuse, word!(Params, diffuse_base)),
+            ],
+            tables: vec![],
+            channels: channels as usize,
+            fit: None,
+        })
+    }
+
+    #[cfg(test)]
+    #[test]
+    fn params_mirror_the_wgsl_struct() {
+        let fields = crate::gpu::tests::fields!(Params {
+            n,
+            channels,
+            lobes,
+            nodes,
+            azimuths,
+            width,
+            g2,
+            symmetric,
+            has_diffuse,
+            diffuse_eta,
+            pad0,
+            pad1,
+            record_base,
+            t_down_base,
+            t_up_base,
+            diffuse_base
+        });
+        crate::gpu::tests::assert_mirrors("belcour", &fields, std::mem::size_of::<Params>());
     }
 }
 

@@ -1,8 +1,10 @@
 //! What the models share and none of them is: their options (`options`), importance sampling by a mixture of their
 //! lobes (`mixture`), the single-pass layer walk of Steinberg, Weidlich–Wilkie and albedo scaling (`single_pass`),
-//! and the evaluation of blocks of rows (`block`).
+//! the evaluation of blocks of rows (`block`), and what a model's GPU half is (`gpu`).
 
 pub mod block;
+#[cfg(feature = "gpu")]
+pub mod gpu;
 pub mod mixture;
 pub mod options;
 pub mod single_pass;

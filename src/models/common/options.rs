@@ -58,6 +58,21 @@ impl OptionSpec {
         }
     }
 
+    /// Every value the option takes that is not its default: the other choices, the other flag value, the end of its
+    /// range that is not the default.
+    pub fn others(&self) -> Vec<Value> {
+        match self.kind {
+            OptionKind::Choice { choices, default } => {
+                choices.iter().filter(|c| **c != default).map(|c| Value::Text(c.to_string())).collect()
+            }
+            OptionKind::Variant { .. } => vec![Value::Text(VARIANTS[1].into())],
+            OptionKind::Flag { default } => vec![Value::Flag(!default)],
+            OptionKind::Number { lo, hi, default } | OptionKind::Channels { lo, hi, default } => {
+                vec![Value::Number(if default == lo { hi } else { lo })]
+            }
+        }
+    }
+
     /// Checks a value against the option's kind: a string of the choices, a bool, or numbers in range.
     fn check(&self, value: &Value) -> Result<()> {
         let name = self.name;
@@ -279,28 +294,13 @@ pub const TRANSPORT_FIT: OptionSpec = flag(
     "transport_fit",
     false,
     "lamina's correction: at each (θi, θo), f ← s f + a fitted over the azimuth to the stack's adding-doubling \
-     solution (its mean exact: the light the model misses added, its lobes' energy set); isotropic stacks, CPU only",
+     solution (its mean exact: the light the model misses added, its lobes' energy set); isotropic stacks",
 );
 
 #[cfg(test)]
 mod tests {
     use super::*;
     use crate::models::CATALOGUE;
-
-    /// Every value an option takes that is not its default: the other choices, the other flag value, a number
-    /// inside its range.
-    fn others(spec: &OptionSpec) -> Vec<Value> {
-        match spec.kind {
-            OptionKind::Choice { choices, default } => {
-                choices.iter().filter(|c| **c != default).map(|c| Value::Text(c.to_string())).collect()
-            }
-            OptionKind::Variant { .. } => vec![Value::Text(VARIANTS[1].into())],
-            OptionKind::Flag { default } => vec![Value::Flag(!default)],
-            OptionKind::Number { lo, hi, default } | OptionKind::Channels { lo, hi, default } => {
-                vec![Value::Number(if default == lo { hi } else { lo })]
-            }
-        }
-    }
 
     #[test]
     fn every_option_takes_its_default_and_its_other_values_and_nothing_else() {
@@ -311,7 +311,7 @@ mod tests {
                 let given = [(spec.name.to_string(), spec.default())];
                 assert_eq!(Args::parse(info, &given).unwrap(), defaults, "{}", spec.name);
                 // Every other value reaches the option.
-                for v in others(spec) {
+                for v in spec.others() {
                     let given = [(spec.name.to_string(), v.clone())];
                     let args = Args::parse(info, &given).unwrap();
                     assert_eq!(args.get(spec.name), Some(&v), "{}.{}", info.name, spec.name);

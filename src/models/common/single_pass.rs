@@ -199,15 +199,19 @@ pub trait Transport {
 /// Most channels evaluated together (a group shares one pass through the stack).
 const GROUP: usize = 16;
 
-/// Groups of channels that share the geometry of a pass: when every dielectric interface has one IOR for all
-/// channels, the refracted directions, transmissions and lobe shapes are the same for all of them and are computed
-/// once per group of up to 16 channels; otherwise (dispersion) each channel makes its own pass.
-fn channel_groups(layers: &[SpLayer], channels: usize) -> Vec<std::ops::Range<usize>> {
-    let shared = layers.iter().all(|l| match l {
+/// Whether every dielectric interface has one IOR for all channels: then the refracted directions, transmissions and
+/// lobe shapes of a pass are the same for every channel.
+pub fn shared_eta(layers: &[SpLayer]) -> bool {
+    layers.iter().all(|l| match l {
         SpLayer::Dielectric { iface, .. } => iface.eta.iter().all(|e| *e == iface.eta[0]),
         _ => true,
-    });
-    let step = if shared { GROUP } else { 1 };
+    })
+}
+
+/// Groups of channels that share the geometry of a pass: groups of up to 16 channels where the IOR is shared
+/// (`shared_eta`), else (dispersion) each channel makes its own pass.
+fn channel_groups(layers: &[SpLayer], channels: usize) -> Vec<std::ops::Range<usize>> {
+    let step = if shared_eta(layers) { GROUP } else { 1 };
     (0..channels).step_by(step).map(|c| c..(c + step).min(channels)).collect()
 }
 
@@ -484,6 +488,51 @@ impl Walk {
             out.fill(0.0);
         }
     }
+}
+
+/// The layers as layers.wgsl reads them, the nodes per Fresnel table (0: none) and the channels a pass of
+/// single_pass.wgsl walks at once (4 where the IOR is shared, else 1): per layer 10 values (kind: 0 dielectric,
+/// 1 conductor, 2 diffuse; the microfacet's distribution, smooth flag, αx, αy, cos φ, sin φ; thickness; Oren–Nayar σ;
+/// the mean η over the channels), then per channel 5 (η, κ, σt, albedo, gain), a conductor base's inter-reflection albedo at
+/// INTERREFLECTION_NODES cosines (zeros without) and Elek's Fresnel table, if any, as (F, 1 − F) per node.
+#[cfg(feature = "gpu")]
+pub fn gpu_layers(layers: &[SpLayer], channels: usize) -> (Vec<f32>, u32, u32) {
+    use crate::tables::elek::FRESNEL_SAMPLES;
+    let samples =
+        if layers.iter().filter_map(SpLayer::interface).any(|i| !i.table.is_empty()) { FRESNEL_SAMPLES } else { 0 };
+    let smooth = Microfacet::new(Distribution::Ggx, 0.0, 0.0, 0.0);
+    let zeros = vec![0.0; channels];
+    let mut out = Vec::new();
+    for layer in layers {
+        let (kind, mf, thickness, sigma, [eta, kappa, sigma_t, albedo, gain]) = match layer {
+            SpLayer::Dielectric { iface, thickness, sigma_t, albedo } => {
+                (0, &iface.mf, *thickness, 0.0, [&iface.eta, &iface.kappa, sigma_t, albedo, &zeros])
+            }
+            SpLayer::Conductor { iface, .. } => {
+                (1, &iface.mf, 0.0, 0.0, [&iface.eta, &iface.kappa, &zeros, &zeros, &zeros])
+            }
+            SpLayer::Diffuse { albedo, sigma, gain } => {
+                (2, &smooth, 0.0, *sigma, [&zeros, &zeros, &zeros, albedo, gain])
+            }
+        };
+        let (cos_phi, sin_phi) = mf.frame();
+        let dist = super::gpu::dist_code(mf.dist) as f64;
+        let header = [kind as f64, dist, mf.is_smooth() as u8 as f64, mf.alpha_x, mf.alpha_y];
+        let mean_eta = eta.iter().sum::<f64>() / channels as f64;
+        out.extend(header.into_iter().chain([cos_phi, sin_phi, thickness, sigma, mean_eta]).map(|x| x as f32));
+        let interreflected = match layer {
+            SpLayer::Conductor { diffuse, .. } if !diffuse.is_empty() => &diffuse[..],
+            _ => &[],
+        };
+        for c in 0..channels {
+            out.extend([eta[c], kappa[c], sigma_t[c], albedo[c], gain[c]].map(|x| x as f32));
+            let nodes = interreflected.get(c * INTERREFLECTION_NODES..(c + 1) * INTERREFLECTION_NODES);
+            out.extend((0..INTERREFLECTION_NODES).map(|j| nodes.map_or(0.0, |n| n[j] as f32)));
+            let table = layer.interface().and_then(|i| i.table.get(c)).map_or(&[][..], |t| t.samples());
+            out.extend(table.iter().copied().chain(std::iter::repeat(0.0)).take(2 * samples));
+        }
+    }
+    (out, samples as u32, if shared_eta(layers) { 4 } else { 1 })
 }
 
 #[cfg(test)]

@@ -10,7 +10,8 @@
 //! x = √(1 − cos θ), as the table does.
 //!
 //! The adding-doubling solver is isotropic: an anisotropic stack is evaluated as the model gives it. The fit is of
-//! the stack as prepared, so per-element inputs (flakes, the patina mask) raise a ValueError with it. CPU only.
+//! the stack as prepared, so per-element inputs (flakes, the patina mask) raise a ValueError with it. The GPU applies
+//! the same fit after the model's own f (gpu/shaders/fit.wgsl, `gpu_values`).
 
 use crate::error::{value_error, Result};
 use crate::models::common::block::simd_columns;
@@ -141,6 +142,11 @@ fn azimuthal_moments(
 }
 
 impl TransportFit {
+    /// The fit as fit.wgsl reads it: (s, a) per (light node, view node, channel), then the added albedo per view node.
+    pub fn gpu_values(&self) -> Vec<f32> {
+        self.fit.iter().flatten().copied().chain(self.added_albedo.iter().map(|&a| a as f32)).collect()
+    }
+
     /// s f + a for a block of rows that the model has evaluated into `out`: the zenith coordinates in vector lanes
     /// first, then the fit's four corners per row, gathered (rows below the horizon keep the model's f).
     #[inline(always)]
@@ -187,6 +193,10 @@ impl Model for TransportFit {
 
     fn specular(&self, wo: DVec3, out: &mut [f64]) {
         self.model.specular(wo, out)
+    }
+
+    fn transport_fit(&self) -> Option<&TransportFit> {
+        Some(self)
     }
 
     fn check_inputs(&self, given: &[bool]) -> Result<()> {
