@@ -17,8 +17,8 @@ pub struct Gpu {
     pub info: wgpu::AdapterInfo,
     pub(crate) device: wgpu::Device,
     pub(crate) queue: wgpu::Queue,
-    pipelines: Vec<[OnceLock<wgpu::ComputePipeline>; 3]>,
-    renderers: Vec<[OnceLock<wgpu::ComputePipeline>; 4]>,
+    pipelines: Vec<[[OnceLock<wgpu::ComputePipeline>; 4]; 3]>,
+    renderers: Vec<[[OnceLock<wgpu::ComputePipeline>; 4]; 4]>,
     pub(crate) raster: [wgpu::RenderPipeline; 2],
     pub(crate) kernels: Mutex<Vec<(String, Arc<Uploaded>)>>,
     pub(crate) tables: Mutex<Vec<((usize, usize), wgpu::Buffer)>>,
@@ -129,8 +129,8 @@ async fn create() -> std::result::Result<Gpu, String> {
         })
         .await
         .map_err(|e| format!("the GPU adapter refused a device: {e}"))?;
-    let pipelines = CATALOGUE.iter().map(|_| std::array::from_fn(|_| OnceLock::new())).collect();
-    let renderers = CATALOGUE.iter().map(|_| std::array::from_fn(|_| OnceLock::new())).collect();
+    let pipelines = CATALOGUE.iter().map(|_| std::array::from_fn(|_| Default::default())).collect();
+    let renderers = CATALOGUE.iter().map(|_| std::array::from_fn(|_| Default::default())).collect();
     let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
         label: Some("raster"),
         source: wgpu::ShaderSource::Wgsl(compose_raster().into()),
@@ -166,33 +166,61 @@ pub(crate) fn compute_pipeline(
     module: &wgpu::ShaderModule,
     entry: &str,
 ) -> wgpu::ComputePipeline {
-    layout_pipeline(device, module, entry, None)
+    layout_pipeline(device, module, entry, None, &[])
 }
 
-/// A pipeline with the given layout, or (None) the one its entry point's bindings imply.
+/// What a model's kernel is compiled for, as pipeline-overridable constants: fit.wgsl's `FITTED` (some stack of the
+/// dispatch has transport_fit) and inputs.wgsl's `INPUTS` (some per-element input is given). The code of a feature
+/// that no element uses is compiled out rather than skipped per element (it halved microfacet's speed on lavapipe).
+#[derive(Clone, Copy, Default)]
+pub(crate) struct Specialization {
+    pub fitted: bool,
+    pub inputs: bool,
+}
+
+impl Specialization {
+    fn index(self) -> usize {
+        self.fitted as usize + 2 * self.inputs as usize
+    }
+
+    fn constants(self) -> [(&'static str, f64); 2] {
+        [("FITTED", self.fitted as u8 as f64), ("INPUTS", self.inputs as u8 as f64)]
+    }
+}
+
+/// A pipeline with the given layout, or (None) the one its entry point's bindings imply, and the values of the
+/// module's pipeline-overridable constants.
 pub(crate) fn layout_pipeline(
     device: &wgpu::Device,
     module: &wgpu::ShaderModule,
     entry: &str,
     layout: Option<&wgpu::PipelineLayout>,
+    constants: &[(&str, f64)],
 ) -> wgpu::ComputePipeline {
     device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
         label: Some(entry),
         layout,
         module,
         entry_point: Some(entry),
-        compilation_options: Default::default(),
+        compilation_options: wgpu::PipelineCompilationOptions { constants, ..Default::default() },
         cache: None,
     })
 }
 
 impl Gpu {
-    /// Model k's (CATALOGUE order) pipeline for `query`, compiled on first use, with one layout for all three queries
+    /// Model k's (CATALOGUE order) pipeline for `query` and `spec`, compiled on first use, with one layout for all three
+    /// queries
     /// (what eval binds: the parameters, the model's `arrays` read-only arrays, the pairs, the output, the fit and the
     /// per-element inputs), so that one
     /// bind group serves each though pdf reads fewer.
-    pub(crate) fn query_pipeline(&self, k: usize, query: Query, arrays: usize) -> &wgpu::ComputePipeline {
-        self.pipelines[k][query as usize].get_or_init(|| {
+    pub(crate) fn query_pipeline(
+        &self,
+        k: usize,
+        query: Query,
+        arrays: usize,
+        spec: Specialization,
+    ) -> &wgpu::ComputePipeline {
+        self.pipelines[k][query as usize][spec.index()].get_or_init(|| {
             let name = CATALOGUE[k].name;
             let entry = |binding: u32, ty: wgpu::BufferBindingType| wgpu::BindGroupLayoutEntry {
                 binding,
@@ -215,16 +243,16 @@ impl Gpu {
                 immediate_size: 0,
             });
             let module = compute_module(&self.device, name, compose(name).expect("listed"));
-            layout_pipeline(&self.device, &module, query.entry(), Some(&layout))
+            layout_pipeline(&self.device, &module, query.entry(), Some(&layout), &spec.constants())
         })
     }
 
-    /// Model k's render pipeline RENDER_KERNELS[kernel], compiled on first use.
-    pub(crate) fn render_pipeline(&self, k: usize, kernel: usize) -> &wgpu::ComputePipeline {
-        self.renderers[k][kernel].get_or_init(|| {
+    /// Model k's render pipeline RENDER_KERNELS[kernel] for `spec`, compiled on first use.
+    pub(crate) fn render_pipeline(&self, k: usize, kernel: usize, spec: Specialization) -> &wgpu::ComputePipeline {
+        self.renderers[k][kernel][spec.index()].get_or_init(|| {
             let name = CATALOGUE[k].name;
             let module = compute_module(&self.device, name, compose_render(name).expect("listed"));
-            compute_pipeline(&self.device, &module, RENDER_KERNELS[kernel])
+            layout_pipeline(&self.device, &module, RENDER_KERNELS[kernel], None, &spec.constants())
         })
     }
 }

@@ -1,7 +1,9 @@
 //! Per-element queries on the device: a model's kernel prepared once per stack and options (kept, with its arrays
 //! uploaded on first use), the pairs in dispatches of at most CHUNK, and the results read back.
 
-use super::device::{buffer, gpu, group, init, read_back, scoped, wait, Buffers, Gpu, Uploaded, STORAGE};
+use super::device::{
+    buffer, gpu, group, init, read_back, scoped, wait, Buffers, Gpu, Specialization, Uploaded, STORAGE,
+};
 use super::{bytes, half, kernel, Kernel, Query};
 use crate::error::{value_error, Result};
 use crate::models::Args;
@@ -188,6 +190,7 @@ pub(crate) fn prepared<'g>(
     args: &Args,
     query: Query,
     pairs: &[f32],
+    inputs: bool,
 ) -> Result<(Arc<Uploaded>, &'g wgpu::ComputePipeline, usize)> {
     if !pairs.len().is_multiple_of(6) {
         return value_error("pairs must be float32 (n, 6) rows of two vectors");
@@ -196,7 +199,8 @@ pub(crate) fn prepared<'g>(
     let (k, _) = half(up.kernel.shader)?;
     let limit = gpu.device.limits().max_storage_buffer_binding_size as usize;
     let chunk = CHUNK.min((limit / (4 * query.width(up.kernel.channels).max(6))).max(64));
-    let pipeline = gpu.query_pipeline(k, query, up.buffers(gpu).arrays.len());
+    let spec = Specialization { fitted: up.kernel.fit.is_some(), inputs };
+    let pipeline = gpu.query_pipeline(k, query, up.buffers(gpu).arrays.len(), spec);
     Ok((up, pipeline, chunk))
 }
 
@@ -229,7 +233,7 @@ pub(crate) fn run_scoped(
     if !matches!(query, Query::Eval) {
         fits_the_mixture(stack)?;
     }
-    let (up, pipeline, chunk) = prepared(gpu, model, stack, args, query, pairs)?;
+    let (up, pipeline, chunk) = prepared(gpu, model, stack, args, query, pairs, inputs.iter().any(Option::is_some))?;
     let c = query.width(up.kernel.channels);
     let mut out = vec![0f32; pairs.len() / 6 * c];
     for (k, (rows, dst)) in pairs.chunks(6 * chunk).zip(out.chunks_mut(chunk * c)).enumerate() {
@@ -248,7 +252,7 @@ pub fn resident_seconds(model: &str, stack: &Stack, args: &Args, pairs: &[f32], 
     let what = format!("timing {model} on {} resident pairs", pairs.len() / 6);
     scoped(&gpu, &what, || {
         let gpu = &*gpu;
-        let (up, pipeline, chunk) = prepared(gpu, model, stack, args, Query::Eval, pairs)?;
+        let (up, pipeline, chunk) = prepared(gpu, model, stack, args, Query::Eval, pairs, false)?;
         let batches: Vec<Batch> =
             pairs.chunks(6 * chunk).map(|rows| batch(gpu, &up, pipeline, Query::Eval, rows, &[])).collect();
         batches.iter().for_each(|b| dispatch_batch(gpu, pipeline, b, None));

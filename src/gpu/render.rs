@@ -2,7 +2,7 @@
 //! batch of stacks rendered in one dispatch (render.wgsl, env.wgsl).
 
 use super::device::{
-    buffer, dispatch, finish, gpu, group, group_of, init, scoped, Gpu, Res, DEPTH, STORAGE, VISIBILITY,
+    buffer, dispatch, finish, gpu, group, group_of, init, scoped, Gpu, Res, Specialization, DEPTH, STORAGE, VISIBILITY,
 };
 use super::dispatch::{batched, cached_kernel, fits_the_mixture, input_buffers};
 use super::{bytes, half, Kernel};
@@ -190,8 +190,12 @@ pub(crate) fn render_scoped(
     shaders.sort_unstable();
     shaders.dedup();
     for shader in shaders {
-        let pipeline = gpu.render_pipeline(half(shader)?.0, kernel);
         let members: Vec<usize> = (0..ups.len()).filter(|&s| ups[s].kernel.shader == shader).collect();
+        let spec = Specialization {
+            fitted: members.iter().any(|&s| ups[s].kernel.fit.is_some()),
+            inputs: textures.iter().any(Option::is_some),
+        };
+        let pipeline = gpu.render_pipeline(half(shader)?.0, kernel, spec);
         for chunk in members.chunks(per_dispatch) {
             let kernels: Vec<&Kernel> = chunk.iter().map(|&s| &ups[s].kernel).collect();
             let images = render_batch(gpu, pipeline, &kernels, scene, mesh.as_ref(), env.as_ref(), &inputs)?;

@@ -5,6 +5,8 @@
 // `fitted_proposals` instead of the model's own.
 
 const FIT_NODES: u32 = 65u;  // adding_doubling::NODES
+// Whether some stack of the dispatch has the correction (gpu::Specialization): without, its code is compiled out.
+override FITTED: bool;
 
 // A stack's correction: whether it has one, where its (s, a) per (node i, node o, channel) start in `fit_values`, and
 // where its added albedo per view node starts.
@@ -23,7 +25,7 @@ var<private> fit: Fit;
 // TransportFit::eval_columns: the model's f, then s f + a per channel (rows below the horizon keep the model's f).
 fn eval_fitted(wi: vec3<f32>, wo: vec3<f32>, base: u32) {
     eval_pair(wi, wo, base);
-    if fit.on == 0u || wi.z <= 0.0 || wo.z <= 0.0 {
+    if !FITTED || fit.on == 0u || wi.z <= 0.0 || wo.z <= 0.0 {
         return;
     }
     let ni = table_node(sqrt(max(1.0 - wi.z, 0.0)), FIT_NODES);
@@ -49,7 +51,7 @@ fn eval_fitted(wi: vec3<f32>, wo: vec3<f32>, base: u32) {
 // mixture's 1 − DEFENSIVE).
 fn fitted_proposals(wo: vec3<f32>) {
     proposals(wo);
-    if fit.on == 0u {
+    if !FITTED || fit.on == 0u {
         return;
     }
     let node = table_node(sqrt(max(1.0 - wo.z, 0.0)), FIT_NODES);

@@ -5,6 +5,8 @@
 // `input_given`; queries.wgsl, render.wgsl and env.wgsl load them.
 
 const MAX_MODEL_INPUTS: u32 = 4u;
+// Whether any input is given (gpu::Specialization): without, loading them is compiled out.
+override INPUTS: bool;
 
 // Texture j: where its texels start in `input_texels`, its size and its values per texel (1 or 3; 0: not given).
 struct InputTexture {
@@ -31,6 +33,9 @@ fn input_given(j: u32) -> bool {
 // Every given input at texel (i, j) of its texture.
 fn load_texels(uv: vec2<f32>, element: u32, by_uv: bool) {
     inputs_given = 0u;
+    if !INPUTS {
+        return;
+    }
     for (var k = 0u; k < MAX_MODEL_INPUTS; k++) {
         let t = input_textures[k];
         inputs[k] = vec3<f32>(0.0);
