@@ -143,15 +143,13 @@ class Stack:
         mixture from the same u)."""
         m, options, inputs = self._split(model, kwargs)
         wl = _wavelengths(wavelengths)
-        if _gpu.use_gpu(device, m.name, options, _float32(wo, u, *(v for v, _ in inputs.values()))):
-            wo, u, *rest = broadcast(wo=(wo, 3), u=(u, 3), **inputs)
-            out = _lamina.sample_gpu(self._resolve(wl), self.ext_ior, m.name, wo, u, options, dict(zip(inputs, rest)))
-            return out[..., :3], out[..., 3:-1], out[..., -1]
+        on_gpu = _gpu.use_gpu(device, m.name, options, _float32(wo, u, *(v for v, _ in inputs.values())))
         wo, u, *rest = broadcast(wo=(wo, 3), u=(u, 3), **inputs)
-        if m.name == "reference":
+        if m.name == "reference":  # never on the GPU: use_gpu refuses it
             out = _lamina.reference_sample(self._resolve(wl), self.ext_ior, wo, u, options)
         else:
-            out = _lamina.sample(self._resolve(wl), self.ext_ior, m.name, wo, u, options, dict(zip(inputs, rest)))
+            run = _lamina.sample_gpu if on_gpu else _lamina.sample
+            out = run(self._resolve(wl), self.ext_ior, m.name, wo, u, options, dict(zip(inputs, rest)))
         return out[..., :3], out[..., 3:-1], out[..., -1]
 
     def pdf(

@@ -255,14 +255,10 @@ pub fn resident_seconds(model: &str, stack: &Stack, args: &Args, pairs: &[f32], 
         let (up, pipeline, chunk) = prepared(gpu, model, stack, args, Query::Eval, pairs, false)?;
         let batches: Vec<Batch> =
             pairs.chunks(6 * chunk).map(|rows| batch(gpu, &up, pipeline, Query::Eval, rows, &[])).collect();
-        batches.iter().for_each(|b| dispatch_batch(gpu, pipeline, b, None));
-        wait(gpu)?;
-        let start = std::time::Instant::now();
-        for _ in 0..repeats.max(1) {
+        mean_seconds(repeats, || {
             batches.iter().for_each(|b| dispatch_batch(gpu, pipeline, b, None));
-            wait(gpu)?;
-        }
-        Ok(start.elapsed().as_secs_f64() / repeats.max(1) as f64)
+            wait(gpu)
+        })
     })
 }
 
@@ -274,18 +270,22 @@ pub fn readback_seconds(bytes: usize, repeats: usize) -> Result<f64> {
     scoped(&gpu, &what, || {
         let size = bytes.max(4).next_multiple_of(4) as u64;
         let src = buffer(&gpu, "result", size, STORAGE | wgpu::BufferUsages::COPY_SRC);
-        let once = || -> Result<()> {
+        mean_seconds(repeats, || {
             let read = buffer(&gpu, "readback", size, wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST);
             let mut encoder = gpu.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: None });
             encoder.copy_buffer_to_buffer(&src, 0, &read, 0, size);
             gpu.queue.submit([encoder.finish()]);
             read_back(&gpu, &read).map(|_| ())
-        };
-        once()?;
-        let start = std::time::Instant::now();
-        for _ in 0..repeats.max(1) {
-            once()?;
-        }
-        Ok(start.elapsed().as_secs_f64() / repeats.max(1) as f64)
+        })
     })
+}
+
+/// The mean seconds of `repeats` (at least one) runs of `once` after a warm-up run.
+fn mean_seconds(repeats: usize, mut once: impl FnMut() -> Result<()>) -> Result<f64> {
+    once()?;
+    let start = std::time::Instant::now();
+    for _ in 0..repeats.max(1) {
+        once()?;
+    }
+    Ok(start.elapsed().as_secs_f64() / repeats.max(1) as f64)
 }

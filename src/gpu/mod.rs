@@ -202,14 +202,6 @@ pub(crate) mod tests {
         module
     }
 
-    /// A Rust struct's fields as (name, byte offset), for `assert_mirrors`.
-    macro_rules! fields {
-        ($ty:ident { $($field:ident),* $(,)? }) => {
-            vec![$((stringify!($field), std::mem::offset_of!($ty, $field))),*]
-        };
-    }
-    pub(crate) use fields;
-
     /// The WGSL struct `Params` of `model`'s composed shader has the Rust struct's fields (names and offsets, in
     /// order) and size: the two mirror each other.
     pub(crate) fn assert_mirrors(model: &str, fields: &[(&str, usize)], size: usize) {

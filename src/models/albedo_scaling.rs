@@ -230,34 +230,31 @@ impl Model for Prepared {
 pub mod gpu {
     use super::{prepare, Options};
     use crate::error::Result;
-    use crate::models::common::gpu::{fresnel_code, g2_code, word, words, GpuHalf, Kernel, LAYERS};
+    use crate::models::common::gpu::{fresnel_code, g2_code, params, word, words, GpuHalf, Kernel, LAYERS};
     use crate::models::common::single_pass::gpu_layers;
     use crate::models::Args;
     use crate::optics::fresnel::FresnelForm;
     use crate::stack::Stack;
     use crate::tables::fgd::{fgd, ETA_MAX, ETA_MIN, KAPPA_MAX, N_ALPHA, N_ETA, N_KAPPA, N_MU};
-    use bytemuck::{Pod, Zeroable};
 
     pub const HALF: GpuHalf =
         GpuHalf { shader: &[LAYERS, include_str!("../gpu/shaders/albedo_scaling.wgsl")], refusal: |_| None, kernel };
 
-    /// albedo_scaling.wgsl's `Params`.
-    #[repr(C)]
-    #[derive(Clone, Copy, Pod, Zeroable)]
-    pub struct Params {
-        pub n: u32,
-        pub channels: u32,
-        pub layers: u32,
-        pub g2: u32,
-        pub reciprocal: u32,
-        pub fresnel: u32,
-        pub fresnel_samples: u32,
-        pub pad0: u32,
-        pub fgd_dims: [u32; 4],
-        pub eta_min: f32,
-        pub eta_max: f32,
-        pub kappa_max: f32,
-        pub layers_base: u32,
+    params! {
+        /// albedo_scaling.wgsl's `Params`.
+        n: u32,
+        channels: u32,
+        layers: u32,
+        g2: u32,
+        reciprocal: u32,
+        fresnel: u32,
+        fresnel_samples: u32,
+        pad0: u32,
+        fgd_dims: [u32; 4],
+        eta_min: f32,
+        eta_max: f32,
+        kappa_max: f32,
+        layers_base: u32,
     }
 
     /// The kernel: the parameters, the layers and the FGD table.
@@ -293,22 +290,7 @@ pub mod gpu {
     #[cfg(test)]
     #[test]
     fn params_mirror_the_wgsl_struct() {
-        let fields = crate::gpu::tests::fields!(Params {
-            n,
-            channels,
-            layers,
-            g2,
-            reciprocal,
-            fresnel,
-            fresnel_samples,
-            pad0,
-            fgd_dims,
-            eta_min,
-            eta_max,
-            kappa_max,
-            layers_base
-        });
-        crate::gpu::tests::assert_mirrors("albedo_scaling", &fields, std::mem::size_of::<Params>());
+        crate::gpu::tests::assert_mirrors("albedo_scaling", Params::FIELDS, std::mem::size_of::<Params>());
     }
 }
 

@@ -230,31 +230,28 @@ pub fn smooth_coat_lambert(albedo: f64, eta: f64, f_int: f64, cos_i: f64, cos_o:
 pub mod gpu {
     use super::{Options, Prepared};
     use crate::error::Result;
-    use crate::models::common::gpu::{fresnel_code, g2_code, word, words, GpuHalf, GpuMicrofacet, Kernel};
+    use crate::models::common::gpu::{fresnel_code, g2_code, params, word, words, GpuHalf, GpuMicrofacet, Kernel};
     use crate::models::Args;
     use crate::optics::distribution::{Distribution, G2Form, Microfacet};
     use crate::optics::fresnel::FresnelForm;
     use crate::stack::Stack;
-    use bytemuck::{Pod, Zeroable};
 
     pub const HALF: GpuHalf =
         GpuHalf { shader: &[include_str!("../gpu/shaders/microfacet.wgsl")], refusal: |_| None, kernel };
 
-    /// microfacet.wgsl's `Params`.
-    #[repr(C)]
-    #[derive(Clone, Copy, Pod, Zeroable)]
-    pub struct Params {
-        pub kind: u32,
-        pub g2: u32,
-        pub fresnel: u32,
-        pub channels: u32,
-        pub n: u32,
-        pub sigma: f32,
-        pub pad0: u32,
-        pub pad1: u32,
-        pub mf: GpuMicrofacet,
-        pub base: u32,
-        pub pad2: u32,
+    params! {
+        /// microfacet.wgsl's `Params`.
+        kind: u32,
+        g2: u32,
+        fresnel: u32,
+        channels: u32,
+        n: u32,
+        sigma: f32,
+        pad0: u32,
+        pad1: u32,
+        mf: GpuMicrofacet,
+        base: u32,
+        pad2: u32,
     }
 
     /// The kernel: the parameters and per channel (eta, k, albedo, f_int).
@@ -302,9 +299,7 @@ pub mod gpu {
     #[cfg(test)]
     #[test]
     fn params_mirror_the_wgsl_struct() {
-        let fields =
-            crate::gpu::tests::fields!(Params { kind, g2, fresnel, channels, n, sigma, pad0, pad1, mf, base, pad2 });
-        crate::gpu::tests::assert_mirrors("microfacet", &fields, std::mem::size_of::<Params>());
+        crate::gpu::tests::assert_mirrors("microfacet", Params::FIELDS, std::mem::size_of::<Params>());
     }
 }
 

@@ -176,12 +176,13 @@ impl Model for Prepared {
 pub mod gpu {
     use super::{prepare, Options};
     use crate::error::Result;
-    use crate::models::common::gpu::{fresnel_code, g2_code, word, words, GpuHalf, Kernel, LAYERS, SINGLE_PASS};
+    use crate::models::common::gpu::{
+        fresnel_code, g2_code, params, word, words, GpuHalf, Kernel, LAYERS, SINGLE_PASS,
+    };
     use crate::models::common::single_pass::gpu_layers;
     use crate::models::Args;
     use crate::stack::Stack;
     use crate::tables::steinberg::{steinberg, ETA_MAX, ETA_MIN, N_ALPHA, N_ETA, N_MU};
-    use bytemuck::{Pod, Zeroable};
 
     pub const HALF: GpuHalf = GpuHalf {
         shader: &[LAYERS, SINGLE_PASS, include_str!("../gpu/shaders/steinberg.wgsl")],
@@ -189,26 +190,24 @@ pub mod gpu {
         kernel,
     };
 
-    /// steinberg.wgsl's `Params`.
-    #[repr(C)]
-    #[derive(Clone, Copy, Pod, Zeroable)]
-    pub struct Params {
-        pub n: u32,
-        pub channels: u32,
-        pub layers: u32,
-        pub g2: u32,
-        pub fresnel: u32,
-        pub eta2: u32,
-        pub fitted: u32,
-        pub n_mu: u32,
-        pub n_alpha: u32,
-        pub n_eta: u32,
-        pub eta_min: f32,
-        pub eta_max: f32,
-        pub fresnel_samples: u32,
-        pub layers_base: u32,
-        pub microfacet_transmission: u32,
-        pub group: u32,
+    params! {
+        /// steinberg.wgsl's `Params`.
+        n: u32,
+        channels: u32,
+        layers: u32,
+        g2: u32,
+        fresnel: u32,
+        eta2: u32,
+        fitted: u32,
+        n_mu: u32,
+        n_alpha: u32,
+        n_eta: u32,
+        eta_min: f32,
+        eta_max: f32,
+        fresnel_samples: u32,
+        layers_base: u32,
+        microfacet_transmission: u32,
+        group: u32,
     }
 
     /// The kernel: the parameters, the layers and Steinberg's tables.
@@ -249,25 +248,7 @@ pub mod gpu {
     #[cfg(test)]
     #[test]
     fn params_mirror_the_wgsl_struct() {
-        let fields = crate::gpu::tests::fields!(Params {
-            n,
-            channels,
-            layers,
-            g2,
-            fresnel,
-            eta2,
-            fitted,
-            n_mu,
-            n_alpha,
-            n_eta,
-            eta_min,
-            eta_max,
-            fresnel_samples,
-            layers_base,
-            microfacet_transmission,
-            group
-        });
-        crate::gpu::tests::assert_mirrors("steinberg", &fields, std::mem::size_of::<Params>());
+        crate::gpu::tests::assert_mirrors("steinberg", Params::FIELDS, std::mem::size_of::<Params>());
     }
 }
 

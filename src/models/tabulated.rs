@@ -238,30 +238,27 @@ impl Model for Prepared {
 pub mod gpu {
     use super::{microsurface, tabulate_stack};
     use crate::error::Result;
-    use crate::models::common::gpu::{g2_code, word, words, GpuHalf, GpuMicrofacet, Kernel};
+    use crate::models::common::gpu::{g2_code, params, word, words, GpuHalf, GpuMicrofacet, Kernel};
     use crate::models::{microfacet, Args, Value};
     use crate::optics::distribution::{Distribution, Microfacet};
     use crate::stack::Stack;
-    use bytemuck::{Pod, Zeroable};
 
     pub const HALF: GpuHalf =
         GpuHalf { shader: &[include_str!("../gpu/shaders/tabulated.wgsl")], refusal: |_| None, kernel };
 
-    /// tabulated.wgsl's `Params`.
-    #[repr(C)]
-    #[derive(Clone, Copy, Pod, Zeroable)]
-    pub struct Params {
-        pub n: u32,
-        pub channels: u32,
-        pub g2: u32,
-        pub has_top: u32,
-        pub top: GpuMicrofacet,
-        pub lobes: u32,
-        pub pad0: u32,
-        pub values_base: u32,
-        pub lobes_at: u32,
-        pub albedo_at: u32,
-        pub table_base: u32,
+    params! {
+        /// tabulated.wgsl's `Params`.
+        n: u32,
+        channels: u32,
+        g2: u32,
+        has_top: u32,
+        top: GpuMicrofacet,
+        lobes: u32,
+        pad0: u32,
+        values_base: u32,
+        lobes_at: u32,
+        albedo_at: u32,
+        table_base: u32,
     }
 
     /// The kernel: the parameters, the stack's values (the top's η per channel, the inner lobes, the albedo below the
@@ -310,20 +307,7 @@ pub mod gpu {
     #[cfg(test)]
     #[test]
     fn params_mirror_the_wgsl_struct() {
-        let fields = crate::gpu::tests::fields!(Params {
-            n,
-            channels,
-            g2,
-            has_top,
-            top,
-            lobes,
-            pad0,
-            values_base,
-            lobes_at,
-            albedo_at,
-            table_base
-        });
-        crate::gpu::tests::assert_mirrors("tabulated", &fields, std::mem::size_of::<Params>());
+        crate::gpu::tests::assert_mirrors("tabulated", Params::FIELDS, std::mem::size_of::<Params>());
     }
 }
 

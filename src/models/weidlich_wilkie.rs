@@ -371,12 +371,14 @@ impl Patina {
 pub mod gpu {
     use super::{prepare, Options};
     use crate::error::Result;
-    use crate::models::common::gpu::{fresnel_code, g2_code, word, words, GpuHalf, Kernel, LAYERS, SINGLE_PASS};
+    use crate::models::common::gpu::{
+        fresnel_code, g2_code, params, word, words, GpuHalf, Kernel, LAYERS, SINGLE_PASS,
+    };
     use crate::models::common::single_pass::gpu_layers;
     use crate::models::Args;
     use crate::stack::Stack;
     use crate::tables::elek::{beckmann_table, D_SIZE};
-    use bytemuck::{Pod, Zeroable};
+    use bytemuck::Zeroable;
 
     pub const HALF: GpuHalf = GpuHalf {
         shader: &[LAYERS, SINGLE_PASS, include_str!("../gpu/shaders/weidlich_wilkie.wgsl")],
@@ -384,31 +386,29 @@ pub mod gpu {
         kernel,
     };
 
-    /// weidlich_wilkie.wgsl's `Params`.
-    #[repr(C)]
-    #[derive(Clone, Copy, Pod, Zeroable)]
-    pub struct Params {
-        pub n: u32,
-        pub channels: u32,
-        pub layers: u32,
-        pub g2: u32,
-        pub fresnel: u32,
-        pub eta2: u32,
-        pub fresnel_samples: u32,
-        pub precomputed: u32,
-        pub d_size: u32,
-        pub layers_base: u32,
-        pub group: u32,
-        pub patina: u32,
-        pub patina_at: u32,
-        pub bare_at: u32,
-        pub tint_at: u32,
-        pub tints: u32,
-        pub extent: f32,
-        pub transition: f32,
-        pub bare_alpha_x: f32,
-        pub bare_alpha_y: f32,
-        pub clamp: u32,
+    params! {
+        /// weidlich_wilkie.wgsl's `Params`.
+        n: u32,
+        channels: u32,
+        layers: u32,
+        g2: u32,
+        fresnel: u32,
+        eta2: u32,
+        fresnel_samples: u32,
+        precomputed: u32,
+        d_size: u32,
+        layers_base: u32,
+        group: u32,
+        patina: u32,
+        patina_at: u32,
+        bare_at: u32,
+        tint_at: u32,
+        tints: u32,
+        extent: f32,
+        transition: f32,
+        bare_alpha_x: f32,
+        bare_alpha_y: f32,
+        clamp: u32,
     }
 
     /// The kernel: the parameters, the layers (with Elek's Fresnel tables when precomputed; then the patina form's
@@ -460,30 +460,7 @@ pub mod gpu {
     #[cfg(test)]
     #[test]
     fn params_mirror_the_wgsl_struct() {
-        let fields = crate::gpu::tests::fields!(Params {
-            n,
-            channels,
-            layers,
-            g2,
-            fresnel,
-            eta2,
-            fresnel_samples,
-            precomputed,
-            d_size,
-            layers_base,
-            group,
-            patina,
-            patina_at,
-            bare_at,
-            tint_at,
-            tints,
-            extent,
-            transition,
-            bare_alpha_x,
-            bare_alpha_y,
-            clamp
-        });
-        crate::gpu::tests::assert_mirrors("weidlich_wilkie", &fields, std::mem::size_of::<Params>());
+        crate::gpu::tests::assert_mirrors("weidlich_wilkie", Params::FIELDS, std::mem::size_of::<Params>());
     }
 }
 

@@ -320,10 +320,9 @@ fn symmetric_cosine(wi: DVec3, wo: DVec3) -> f64 {
 pub mod gpu {
     use super::{prepare, Options};
     use crate::error::{value_error, Result};
-    use crate::models::common::gpu::{g2_code, word, words, GpuHalf, Kernel};
+    use crate::models::common::gpu::{g2_code, params, word, words, GpuHalf, Kernel};
     use crate::models::Args;
     use crate::stack::Stack;
-    use bytemuck::{Pod, Zeroable};
 
     pub const HALF: GpuHalf = GpuHalf {
         shader: &[include_str!("../../gpu/shaders/belcour.wgsl")],
@@ -334,26 +333,24 @@ pub mod gpu {
         kernel,
     };
 
-    /// belcour.wgsl's `Params`.
-    #[repr(C)]
-    #[derive(Clone, Copy, Pod, Zeroable)]
-    pub struct Params {
-        pub n: u32,
-        pub channels: u32,
-        pub lobes: u32,
-        pub nodes: u32,
-        pub azimuths: u32,
-        pub width: u32,
-        pub g2: u32,
-        pub symmetric: u32,
-        pub has_diffuse: u32,
-        pub diffuse_eta: f32,
-        pub pad0: u32,
-        pub pad1: u32,
-        pub record_base: u32,
-        pub t_down_base: u32,
-        pub t_up_base: u32,
-        pub diffuse_base: u32,
+    params! {
+        /// belcour.wgsl's `Params`.
+        n: u32,
+        channels: u32,
+        lobes: u32,
+        nodes: u32,
+        azimuths: u32,
+        width: u32,
+        g2: u32,
+        symmetric: u32,
+        has_diffuse: u32,
+        diffuse_eta: f32,
+        pad0: u32,
+        pad1: u32,
+        record_base: u32,
+        t_down_base: u32,
+        t_up_base: u32,
+        diffuse_base: u32,
     }
 
     /// The kernel: the parameters, the table and the diffuse base.
@@ -403,25 +400,7 @@ pub mod gpu {
     #[cfg(test)]
     #[test]
     fn params_mirror_the_wgsl_struct() {
-        let fields = crate::gpu::tests::fields!(Params {
-            n,
-            channels,
-            lobes,
-            nodes,
-            azimuths,
-            width,
-            g2,
-            symmetric,
-            has_diffuse,
-            diffuse_eta,
-            pad0,
-            pad1,
-            record_base,
-            t_down_base,
-            t_up_base,
-            diffuse_base
-        });
-        crate::gpu::tests::assert_mirrors("belcour", &fields, std::mem::size_of::<Params>());
+        crate::gpu::tests::assert_mirrors("belcour", Params::FIELDS, std::mem::size_of::<Params>());
     }
 }
 

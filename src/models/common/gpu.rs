@@ -36,6 +36,27 @@ pub struct Kernel {
     pub fit: Option<Vec<f32>>,
 }
 
+/// Declares a model's `Params`: a `#[repr(C)]` Pod struct that its WGSL struct of the same name mirrors, and (in tests)
+/// `Params::FIELDS`, its fields as (name, byte offset) in order, which the model's unit test holds against the WGSL
+/// (`gpu::tests::assert_mirrors`).
+macro_rules! params {
+    ($(#[$meta:meta])* $($field:ident: $ty:ty,)*) => {
+        $(#[$meta])*
+        #[repr(C)]
+        #[derive(Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
+        pub struct Params {
+            $(pub $field: $ty,)*
+        }
+
+        #[cfg(test)]
+        impl Params {
+            pub const FIELDS: &'static [(&'static str, usize)] =
+                &[$((stringify!($field), std::mem::offset_of!(Params, $field)),)*];
+        }
+    };
+}
+pub(crate) use params;
+
 /// The word of a `Params` field: its byte offset / 4.
 macro_rules! word {
     ($ty:ty, $field:ident) => {
