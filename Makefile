@@ -77,11 +77,14 @@ py-test: develop test-deps
 
 test: lint rust-test py-test wheel-test
 
+# OPENBLAS_NUM_THREADS=1: NumPy's BLAS threads would otherwise spin on the cores both sides are measured on.
+bench: export OPENBLAS_NUM_THREADS = 1
 bench: develop test-deps
 	@if [ "$$(id -u)" = 0 ] && command -v apt-get >/dev/null && ! command -v perf >/dev/null; then \
 		apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq linux-perf >/dev/null; \
 	fi
 	$(LLVM) $(VPY) benchmarks/bench_conductor.py
+	$(VPY) benchmarks/bench_float32.py
 	$(LLVM) $(VPY) benchmarks/bench_layered.py
 	$(LLVM) $(VPY) benchmarks/bench_sampling.py
 	$(VPY) benchmarks/bench_reference.py

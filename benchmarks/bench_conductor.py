@@ -27,6 +27,8 @@ N = int(os.environ.get("LAMINA_BENCH_N", 1_000_000))
 REPEATS = 15
 ETA, K, ALPHA = (0.2, 0.45, 1.4), (3.6, 2.5, 1.9), 0.3
 MITSUBA = "Mitsuba 3 llvm_ad_rgb roughconductor (float32)"
+ALONE = "lamina float32 in/out, before any Mitsuba call"
+MEMCPY = "memcpy of the same bytes (36 per pair; the roofline)"
 
 
 def timed(fn) -> float:
@@ -120,15 +122,20 @@ def worker(threads: int) -> dict:
     wi64, wo64 = hemisphere(rng, N), hemisphere(rng, N)
     wi32, wo32 = wi64.astype(np.float32), wo64.astype(np.float32)
     stack = lamina.Stack([lamina.Conductor(ETA, K, ALPHA)])
+    # lamina alone first, before Mitsuba has run in this process (its thread pool then shares the cores).
+    alone = measure_all({ALONE: lambda: stack.eval(wi32, wo32, g2="separable")})
+    # The memory roofline: a copy of the bytes an evaluation moves (two float32 directions in, three values out).
+    src, dst = np.ones(9 * N, np.float32), np.empty(9 * N, np.float32)
     fns = {
         "lamina float32 in/out": lambda: stack.eval(wi32, wo32, g2="separable"),
         "lamina float64 in/out": lambda: stack.eval(wi64, wo64, g2="separable"),
         "lamina float32, fresnel='schlick'": lambda: stack.eval(wi32, wo32, g2="separable", fresnel="schlick"),
         MITSUBA: mitsuba_eval(mitsuba_conductor(), wi32, wo32),
+        MEMCPY: lambda: np.copyto(dst, src),
     }
     if threads == 1:
         fns["NumPy float64 (one thread)"] = lambda: numpy_conductor(wi64, wo64)
-    rows = measure_all(fns)
+    rows = {**alone, **measure_all(fns)}
     # Same answers before any figure is reported: Mitsuba's f·cos θi divided by cos θi here, outside its timing.
     a, b = stack.eval(wi64, wo64, g2="separable"), fns[MITSUBA]().T / wi32[:, 2:3]
     big = a > 1e-3 * a.max()
@@ -146,7 +153,7 @@ def main() -> None:
         return
     runs = {}
     for threads in (1, 2):
-        env = {**os.environ, "RAYON_NUM_THREADS": str(threads)}
+        env = {**os.environ, "RAYON_NUM_THREADS": str(threads), "OPENBLAS_NUM_THREADS": "1"}
         out = subprocess.run(
             [sys.executable, __file__, "--worker", str(threads)], env=env, capture_output=True, text=True, check=True
         )
@@ -165,7 +172,9 @@ def main() -> None:
         "lamina: `Stack.eval` on NumPy arrays, every conversion included. Mitsuba: `np.array(bsdf.eval(ctx, si, wo))` "
         "and nothing else (inputs built once as Dr.Jit arrays); it returns f·cos θ, lamina f, each its own quantity. "
         f"Median of {REPEATS} round-robin runs after a cold call, with the quartiles; each thread count in a process "
-        "of its own. Largest relative difference lamina vs Mitsuba on these pairs (values above 1e-3 of the peak): "
+        "of its own, with OPENBLAS_NUM_THREADS=1 (NumPy's BLAS threads otherwise spin on the same two cores). "
+        "lamina's float32 inputs run in its float32 lane engine (src/engine). Largest relative difference lamina vs "
+        "Mitsuba on these pairs (values above 1e-3 of the peak): "
         f"{two['agreement']:.1e}. Schlick's Fresnel instead of the exact conductor Fresnel changes f by up to "
         f"{two['schlick']:.1%} on the same pairs.",
         "",
@@ -186,10 +195,22 @@ def main() -> None:
         th: float(np.median(run["rows"][MITSUBA]["times"]) / np.median(run["rows"]["lamina float32 in/out"]["times"]))
         for th, run in runs.items()
     }
+    rate = {th: {name: N / float(np.median(r["times"])) for name, r in run["rows"].items()} for th, run in runs.items()}
+    lamina32 = "lamina float32 in/out"
     lines += [
         "",
         f"**lamina (float32) / Mitsuba 3 llvm_ad_rgb throughput ratio: {ratio[2]:.2f}x at 2 threads, {ratio[1]:.2f}x "
         f"at 1 thread** (Mitsuba: {N / np.median(two['rows'][MITSUBA]['times']):,.0f} evaluations/s at 2 threads).",
+        "",
+        "The first row times lamina before Mitsuba has run in the process: after Mitsuba's calls, lamina runs "
+        "slower in the same process (the second row, in the round-robin), which a run of lamina alone does not show "
+        "(the cause, presumably Dr.Jit's worker threads still holding the two cores, is not traced).",
+        "",
+        f"Thread scaling 1 → 2 threads: lamina {rate[2][lamina32] / rate[1][lamina32]:.2f}x (measured alone: "
+        f"{rate[2][ALONE] / rate[1][ALONE]:.2f}x), Mitsuba {rate[2][MITSUBA] / rate[1][MITSUBA]:.2f}x. Roofline at 2 "
+        f"threads: lamina moves {36 * rate[2][lamina32] / 1e9:.2f} GB/s of the {36 * rate[2][MEMCPY] / 1e9:.2f} GB/s "
+        f"a copy of the same bytes reaches ({rate[2][lamina32] / rate[2][MEMCPY]:.0%}; Mitsuba "
+        f"{rate[2][MITSUBA] / rate[2][MEMCPY]:.0%}).",
         "",
         f"Machine: {cpu}, {os.cpu_count()} logical cores, Python {platform.python_version()}, NumPy {np.__version__}, "
         f"Mitsuba {mi.__version__}, lamina {lamina.__version__}. "

@@ -25,6 +25,7 @@ VARIANTS = [
     ("weidlich_wilkie, full", "weidlich_wilkie", {}),
     ("weidlich_wilkie, precomputed (Elek's tables)", "weidlich_wilkie", {"precomputed": True}),
     ("weidlich_wilkie, Lazányi Fresnel", "weidlich_wilkie", {"fresnel": "lazanyi"}),
+    ("tabulated (float32 lane engine)", "tabulated", {}),
 ]
 STACKS = {
     "2 layers": "rough-coat-rough-copper",
@@ -78,9 +79,11 @@ def main() -> None:
         "three-layer, anisotropic = anisotropic-coat-metal. lamina's calls include every NumPy conversion; Mitsuba's "
         "peer is `np.array(bsdf.eval(ctx, si, wo))` and nothing else (as in the conductor section). A model is "
         "prepared by the first call on a stack (Belcour: its table over cos θ, 512 nodes; anisotropic stacks 128 "
-        "cos θ x 32 azimuths; Steinberg and Weidlich–Wilkie: their lookup tables, loaded from the cache) and kept "
+        "cos θ x 32 azimuths; Steinberg and Weidlich–Wilkie: their lookup tables, loaded from the cache; tabulated: "
+        "its adding-doubling solve, or its table from the cache) and kept "
         "for the next calls with the same stack and options; that first call (10 pairs) is timed on its own, the "
-        "other columns time the calls after it. Ratio: throughput relative to Mitsuba 3 "
+        "other columns time the calls after it. `make bench` runs every benchmark with OPENBLAS_NUM_THREADS=1. "
+        "Ratio: throughput relative to Mitsuba 3 "
         f"`llvm_ad_rgb` `roughconductor` (one GGX lobe, {N / mitsuba_t:,.0f} evaluations/s in this run).",
         "",
         "| model, variant | stack | first call (s) | median time (s) | evaluations/s | ratio to Mitsuba's one lobe |",

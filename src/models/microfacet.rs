@@ -14,10 +14,12 @@ use super::common::block::{eval_rows, simd_columns, BLOCK};
 use super::common::options::{DISTRIBUTION, FRESNEL, G2};
 use super::{Args, InputSpec, Model, ModelInfo, OptionSpec, Properties, Proposal};
 use crate::bsdf;
+use crate::engine::{self, Floats, Rows, V3};
 use crate::error::{value_error, Result};
 use crate::optics::diffuse;
 use crate::optics::distribution::{Distribution, G2Form, Microfacet};
 use crate::optics::fresnel::{self, FresnelForm};
+use crate::optics::lanes::{self, ConductorIor, Ggx};
 use crate::stack::{Layer, Stack};
 use glam::DVec3;
 use std::f64::consts::FRAC_1_PI;
@@ -122,6 +124,16 @@ impl Model for Prepared {
         simd_columns!(Prepared, self, wi, wo, out)
     }
 
+    fn eval_f32(&self, wi: Rows, wo: Rows, out: &mut [f32]) -> bool {
+        match self {
+            Prepared::Conductor { mf, g2, fresnel, eta, k } => Ggx::new(mf, *g2).is_some_and(|ggx| {
+                let ior = eta.iter().zip(k).map(|(&e, &k)| ConductorIor::new(*fresnel, e, k)).collect();
+                engine::eval(&ConductorLanes { ggx, ior }, eta.len(), wi, wo, out)
+            }),
+            _ => false,
+        }
+    }
+
     fn proposals(&self, _wo: DVec3) -> Vec<(f64, Proposal)> {
         match self {
             Prepared::Conductor { mf, .. } if mf.is_smooth() => vec![],
@@ -183,6 +195,22 @@ impl Prepared {
             for (o, &x) in out.chunks_exact_mut(k).zip(f.iter()) {
                 o[c] = x;
             }
+        }
+    }
+}
+
+/// The rough GGX conductor in float32 lanes: the geometry once, the Fresnel term per channel.
+struct ConductorLanes {
+    ggx: Ggx,
+    ior: Vec<ConductorIor>,
+}
+
+impl engine::Kernel for ConductorLanes {
+    #[inline(always)]
+    fn eval(&self, wi: V3, wo: V3, out: &mut [Floats]) {
+        let (geo, cos_h) = lanes::ggx_reflection(&self.ggx, wi, wo);
+        for (o, ior) in out.iter_mut().zip(&self.ior) {
+            *o = geo * lanes::conductor(cos_h, ior);
         }
     }
 }

@@ -22,6 +22,7 @@ pub mod weidlich_wilkie;
 pub use common::block::{eval_fan, eval_one, BLOCK, MAX_INPUTS};
 pub use common::options::{Args, OptionKind, OptionSpec, Value};
 
+use crate::engine::Rows;
 use crate::error::{py, py_list, value_error, Result};
 use crate::optics::distribution::Microfacet;
 use crate::stack::Stack;
@@ -124,6 +125,13 @@ pub trait Model: Send + Sync {
     /// Checks which per-element inputs are given (in the order of the model's `inputs`) before an evaluation.
     fn check_inputs(&self, _given: &[bool]) -> Result<()> {
         Ok(())
+    }
+
+    /// f of float32 (n, 3) direction rows into `out` (n rows of one value per channel) by the float32 engine
+    /// (engine/), if the model has a lane kernel for this stack and these options; false sends the call to
+    /// `eval_block` (no lane kernel, per-element inputs, or a row the engine does not take).
+    fn eval_f32(&self, _wi: Rows, _wo: Rows, _out: &mut [f32]) -> bool {
+        false
     }
 
     /// The model's transport_fit correction, if it has one (what the GPU applies after the model's own f).

@@ -18,12 +18,14 @@ use super::common::block::{simd_columns, BLOCK};
 use super::common::mixture::defensive_mixture;
 use super::common::options::{microsurface, DISTRIBUTION, G2};
 use super::{microfacet, InputSpec, Model, ModelInfo, OptionSpec, Properties, Proposal};
+use crate::engine::{self, Floats, Rows, LANES, V3};
 use crate::error::{value_error, Result};
 use crate::optics::distribution::{G2Form, Microfacet};
 use crate::optics::fresnel::{self, FresnelForm};
+use crate::optics::lanes::{self, Ggx};
 use crate::stack::{Layer, Stack};
 use crate::tables::adding_doubling::{pair, tabulate, Cells, NODES, N_PHI, N_THETA, ORDERS, PAIRS};
-use crate::tables::{cached, node};
+use crate::tables::{cached, node, node_lanes};
 use crate::transport::Microsurface;
 use glam::DVec3;
 use std::hash::{DefaultHasher, Hash, Hasher};
@@ -196,6 +198,89 @@ impl Prepared {
     }
 }
 
+impl Prepared {
+    /// The table's trilinear interpolation in float32 at the lower nodes `at` (θi, θo, φ) with the upper nodes'
+    /// weights `w`: channels c0..c0 + C.
+    #[inline(always)]
+    fn interpolate<const C: usize>(&self, at: [usize; 3], w: [f32; 3], c0: usize) -> [f32; C] {
+        let ch = self.eta.len();
+        let mut f = [0.0f32; C];
+        for (di, wi) in [(0, 1.0 - w[0]), (1, w[0])] {
+            for (dj, wo) in [(0, 1.0 - w[1]), (1, w[1])] {
+                let k = (pair(at[0] + di, at[1] + dj) * N_PHI + at[2]) * ch + c0;
+                let (w0, w1) = (wi * wo * (1.0 - w[2]), wi * wo * w[2]);
+                let (a, b) = (&self.table[k..k + C], &self.table[k + ch..k + ch + C]);
+                for c in 0..C {
+                    f[c] = a[c].mul_add(w0, b[c].mul_add(w1, f[c]));
+                }
+            }
+        }
+        f
+    }
+}
+
+/// The tabulated model in float32 lanes: the top's reflection and the table's coordinates in lanes, the corners
+/// gathered lane by lane.
+struct Lanes<'a> {
+    p: &'a Prepared,
+    top: Option<Ggx>,
+}
+
+impl engine::Kernel for Lanes<'_> {
+    #[inline(always)]
+    fn eval(&self, wi: V3, wo: V3, out: &mut [Floats]) {
+        let zero = Floats::splat(0.0);
+        match &self.top {
+            Some(ggx) => {
+                let (geo, cos_h) = lanes::ggx_reflection(ggx, wi, wo);
+                let eta = &self.p.eta;
+                for c in 0..eta.len() {
+                    out[c] =
+                        if c > 0 && eta[c] == eta[c - 1] { out[c - 1] } else { geo * lanes::dielectric(cos_h, eta[c]) };
+                }
+            }
+            None => out.fill(zero),
+        }
+        // The coordinates in forms without cancellation, as float32 needs them near their ends: the zenith
+        // coordinate √(1 − cos θ) = √((x² + y²) / (1 + cos θ)) (`zenith`), and the azimuth between the travel
+        // directions y = sin(φ/2) = √((1 − cos φ)/2) with cos φ = −cos(φi − φo), as |âi + âo| / 2 for the unit
+        // tangent components â (0 where either direction is the normal).
+        let (ri, ro) = (wi.x.mul_add(wi.x, wi.y * wi.y), wo.x.mul_add(wo.x, wo.y * wo.y));
+        let zenith = |r2: Floats, z: Floats| (r2 / (1.0 + z.max(zero))).sqrt();
+        let (i, fi) = node_lanes(zenith(ri, wi.z), NODES);
+        let (o, fo) = node_lanes(zenith(ro, wo.z), NODES);
+        let both = ri.gt(zero) & ro.gt(zero);
+        let (si, so) = (1.0 / ri.sqrt(), 1.0 / ro.sqrt());
+        let (ax, ay) = (wi.x.mul_add(si, wo.x * so), wi.y.mul_add(si, wo.y * so));
+        let (p, fp) = node_lanes(Floats::and(both, 0.5 * ax.mul_add(ax, ay * ay).sqrt()), N_PHI);
+        let above = wi.z.gt(zero) & wo.z.gt(zero);
+        // The corners' records requested for every lane before any is read: the table (0.8 MiB for RGB) is read at
+        // random, and the lanes' cache misses then overlap.
+        #[cfg(target_arch = "x86_64")]
+        for l in 0..LANES {
+            for (di, dj) in [(0, 0), (0, 1), (1, 0), (1, 1)] {
+                let k = (pair(i[l] as usize + di, o[l] as usize + dj) * N_PHI + p[l] as usize) * self.p.eta.len();
+                let at = self.p.table[k..].as_ptr();
+                // SAFETY: a prefetch reads nothing; the address is inside the table.
+                unsafe { std::arch::x86_64::_mm_prefetch::<{ std::arch::x86_64::_MM_HINT_T0 }>(at as *const i8) };
+            }
+        }
+        for l in (0..LANES).filter(|&l| above.0[l] != 0) {
+            let at = [i[l] as usize, o[l] as usize, p[l] as usize];
+            let weights = [fi.0[l], fo.0[l], fp.0[l]];
+            // RGB with its three channels in registers; any other count a channel at a time.
+            if out.len() == 3 {
+                let f = self.p.interpolate::<3>(at, weights, 0);
+                (0..3).for_each(|c| out[c].0[l] += f[c]);
+            } else {
+                for (c, o) in out.iter_mut().enumerate() {
+                    o.0[l] += self.p.interpolate::<1>(at, weights, c)[0];
+                }
+            }
+        }
+    }
+}
+
 /// The table nodes below a block's coordinates (θi, θo, φ) and the weights of the nodes above.
 struct Corners {
     i: [usize; BLOCK],
@@ -209,6 +294,17 @@ struct Corners {
 impl Model for Prepared {
     fn eval_block(&self, wi: [&[f64]; 3], wo: [&[f64]; 3], _inputs: &super::Inputs, out: &mut [f64]) {
         simd_columns!(Prepared, self, wi, wo, out)
+    }
+
+    fn eval_f32(&self, wi: Rows, wo: Rows, out: &mut [f32]) -> bool {
+        let top = match &self.top {
+            Some(mf) => match Ggx::new(mf, self.g2) {
+                Some(ggx) => Some(ggx),
+                None => return false,
+            },
+            None => None,
+        };
+        engine::eval(&Lanes { p: self, top }, self.eta.len(), wi, wo, out)
     }
 
     fn proposals(&self, wo: DVec3) -> Vec<(f64, Proposal)> {

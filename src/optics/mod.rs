@@ -5,6 +5,7 @@ pub mod diffuse;
 pub mod distribution;
 pub mod fresnel;
 pub mod jacobian;
+pub mod lanes;
 
 use glam::DVec3;
 

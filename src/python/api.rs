@@ -2,7 +2,7 @@
 //! reflection, whatever the model; a model's options and per-element inputs are checked against its catalogue
 //! entry (models/mod.rs).
 
-use super::arrays::{batch, batch_blocks, vec3, Kind, MAX_INPUTS};
+use super::arrays::{batch, batch_blocks, engine_f32, vec3, Kind, MAX_INPUTS};
 use super::interrupt::interruptible;
 use crate::error::Error;
 use crate::models::common::mixture::{self, weight_factor};
@@ -322,6 +322,11 @@ pub fn eval<'py>(
     let mut arrays = Vec::new();
     let dirs = [("wi", wi, Kind::Direction), ("wo", wo, Kind::Direction)];
     let (p, channels, all, slot) = call(layers, ext_ior, model, dirs, options, inputs, &mut arrays)?;
+    if all.len() == 2 {
+        if let Some(f) = engine_f32(py, wi, wo, channels, |wi, wo, out| p.eval_f32(wi, wo, out))? {
+            return Ok(f);
+        }
+    }
     batch_blocks(py, &all, channels, |b, o| {
         let mut cols: [Option<[&[f64]; 3]>; MAX_INPUTS] = [None; MAX_INPUTS];
         for (c, s) in cols.iter_mut().zip(&slot) {

@@ -3,7 +3,8 @@
 //! GIL is released, in chunks between which Ctrl-C is honoured; outputs are allocated by NumPy (MemoryError, not an
 //! abort, when they do not fit) and written in place: float32 when every input is float32, else float64.
 
-use crate::models::{self, BLOCK};
+use crate::engine::Rows;
+use crate::models::BLOCK;
 use glam::DVec3;
 use numpy::{PyArrayDyn, PyArrayMethods, PyReadonlyArrayDyn, PyUntypedArrayMethods};
 use pyo3::exceptions::{PyTypeError, PyValueError};
@@ -120,7 +121,7 @@ impl Block {
     /// again to find it.
     fn validate(&mut self, j: usize, kind: Kind) -> Option<(usize, bool)> {
         #[cfg(target_arch = "x86_64")]
-        if models::common::block::has_avx2() {
+        if crate::engine::has_avx2() {
             // SAFETY: the CPU supports every feature the function is compiled for.
             return unsafe { self.validate_avx2(j, kind) };
         }
@@ -285,6 +286,56 @@ pub fn batch_blocks<'py>(
         return Err(PyValueError::new_err(format!("{} contains {what} (row {row} of {n})", inputs[j].0)));
     }
     Ok(array)
+}
+
+/// A float32 (..., 3) array as rows the engine reads in place: C-contiguous, or one row broadcast to every element
+/// (every batch stride 0); None for other layouts.
+fn engine_rows<'a>(a: &'a PyReadonlyArrayDyn<'_, f32>) -> Option<Rows<'a>> {
+    let v = a.as_array();
+    let nd = v.ndim();
+    if nd == 0 || v.shape()[nd - 1] != 3 {
+        return None;
+    }
+    if let (true, Ok(s)) = (a.is_c_contiguous(), a.as_slice()) {
+        return Some(Rows::Packed(s));
+    }
+    let first: Vec<f32> = v.iter().take(3).copied().collect();
+    (v.strides()[..nd - 1].iter().all(|&s| s == 0) && first.len() == 3)
+        .then(|| Rows::Splat([first[0], first[1], first[2]]))
+}
+
+/// f of float32 directions by the float32 engine: `eval(wi, wo, out)` over chunks of CHUNK_ROWS rows with the GIL
+/// released (Ctrl-C checked in between), into a new float32 array of shape batch + (out_k,). None, before anything
+/// is computed, for inputs the engine does not read (float64, other layouts), and None when `eval` declines a chunk
+/// (engine::eval): the caller then takes the careful path.
+pub fn engine_f32<'py>(
+    py: Python<'py>,
+    wi: &Bound<'py, PyAny>,
+    wo: &Bound<'py, PyAny>,
+    out_k: usize,
+    eval: impl Fn(Rows, Rows, &mut [f32]) -> bool + Sync,
+) -> PyResult<Option<Bound<'py, PyAny>>> {
+    let (Ok(a), Ok(b)) = (wi.extract::<PyReadonlyArrayDyn<'py, f32>>(), wo.extract::<PyReadonlyArrayDyn<'py, f32>>())
+    else {
+        return Ok(None);
+    };
+    let (Some(ra), Some(rb)) = (engine_rows(&a), engine_rows(&b)) else { return Ok(None) };
+    if a.shape() != b.shape() || out_k == 0 {
+        return Ok(None);
+    }
+    let mut shape = a.shape()[..a.ndim() - 1].to_vec();
+    shape.push(out_k);
+    let array = py.import("numpy")?.call_method1("empty", (shape, "float32"))?;
+    let out = unsafe { array.cast::<PyArrayDyn<f32>>()?.as_slice_mut() }.expect("new arrays are contiguous");
+    for (c, chunk) in out.chunks_mut(CHUNK_ROWS * out_k).enumerate() {
+        let (start, len) = (c * CHUNK_ROWS, chunk.len() / out_k);
+        let (wi, wo) = (ra.rows(start, len), rb.rows(start, len));
+        if !py.detach(|| eval(wi, wo, chunk)) {
+            return Ok(None);
+        }
+        py.check_signals()?;
+    }
+    Ok(Some(array))
 }
 
 /// `fill` in chunks of CHUNK_ROWS rows with the GIL released, checking for Ctrl-C (KeyboardInterrupt) in between.

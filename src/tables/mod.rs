@@ -10,6 +10,7 @@ pub mod steinberg;
 
 pub use fgd::fgd;
 
+use crate::engine::{Floats, LANES};
 use crate::error::Result;
 use crate::optics::distribution::Microfacet;
 use glam::DVec3;
@@ -69,6 +70,14 @@ pub fn node(x: f64, n: usize) -> (usize, f64) {
     let s = x.clamp(0.0, 1.0) * (n - 1) as f64;
     let i = (s as i32).min(n as i32 - 2);
     (i as usize, s - i as f64)
+}
+
+/// `node` in float32 lanes: the lower nodes and the fractions.
+#[inline(always)]
+pub fn node_lanes(x: Floats, n: usize) -> ([u32; LANES], Floats) {
+    let s = x.max(Floats::splat(0.0)).min(Floats::splat(1.0)) * (n - 1) as f32;
+    let i: [u32; LANES] = std::array::from_fn(|l| (s.0[l] as u32).min(n as u32 - 2));
+    (i, s - Floats(std::array::from_fn(|l| i[l] as f32)))
 }
 
 /// Records of W f32 values on a regular grid of D axes, each axis spanning [0, 1] in its own coordinate: the one

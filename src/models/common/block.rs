@@ -78,7 +78,7 @@ pub fn eval_rows(wi: [&[f64]; 3], wo: [&[f64]; 3], out: &mut [f64], eval: impl F
 macro_rules! simd_columns {
     ($ty:ty, $p:expr, $wi:expr, $wo:expr, $out:expr) => {{
         #[cfg(target_arch = "x86_64")]
-        if $crate::models::common::block::has_avx2() {
+        if $crate::engine::has_avx2() {
             #[target_feature(enable = "avx2,fma")]
             unsafe fn avx2(p: &$ty, wi: [&[f64]; 3], wo: [&[f64]; 3], out: &mut [f64]) {
                 p.eval_columns(wi, wo, out)
@@ -90,10 +90,3 @@ macro_rules! simd_columns {
     }};
 }
 pub(crate) use simd_columns;
-
-/// Whether the CPU has AVX2 and FMA (checked once, then cached by std).
-#[cfg(target_arch = "x86_64")]
-#[inline]
-pub fn has_avx2() -> bool {
-    std::arch::is_x86_feature_detected!("avx2") && std::arch::is_x86_feature_detected!("fma")
-}

@@ -1,0 +1,252 @@
+//! The float32 evaluation engine: a model's kernel written once against the lane type (`lanes.rs`: sixteen float32
+//! lanes) is run here over NumPy's float32 rows, from load to store in float32, in parallel with rayon.
+//!
+//! What a model writes: a type that implements `Kernel` (f for LANES pairs of unit directions) with `#[inline(always)]`
+//! on its `eval`, and a `Model::eval_f32` that calls `engine::eval` with it. Everything else is here: the (n, 3) rows
+//! are read straight from NumPy's memory (or one broadcast row is splat), de-interleaved, checked and normalised in
+//! lanes, evaluated, and written straight into the output. No allocation per block and no zeroing pass. The row
+//! loop is compiled twice, for AVX2 + FMA (the kernel's lane operations become 256-bit instructions) and portably,
+//! and the choice is made once per call; both give the same bits (lanes.rs).
+//!
+//! A row that float32 cannot take as it is (NaN, Inf, a zero-length direction, or one whose squared length leaves
+//! float32's normal range) stops the engine: the call then runs on the careful float64 path, which raises the same
+//! errors as before and computes such rows exactly.
+
+pub mod lanes;
+
+pub use lanes::{Floats, Mask, LANES, V3};
+use rayon::prelude::*;
+use std::sync::atomic::{AtomicBool, Ordering};
+
+/// A model's float32 kernel.
+pub trait Kernel: Sync {
+    /// f(wi, wo) of LANES pairs of unit directions (either side of the surface), channel c into out[c].
+    fn eval(&self, wi: V3, wo: V3, out: &mut [Floats]);
+}
+
+/// An (n, 3) float32 input: n rows in C order, or one row broadcast to every element.
+#[derive(Clone, Copy, Debug)]
+pub enum Rows<'a> {
+    Packed(&'a [f32]),
+    Splat([f32; 3]),
+}
+
+impl<'a> Rows<'a> {
+    /// Rows start..start + len.
+    pub fn rows(self, start: usize, len: usize) -> Rows<'a> {
+        match self {
+            Rows::Packed(s) => Rows::Packed(&s[3 * start..3 * (start + len)]),
+            splat => splat,
+        }
+    }
+}
+
+/// Rows per parallel task.
+const TASK_ROWS: usize = 2048;
+
+/// f of every pair (wi[r], wo[r]) into out (rows of `channels` values) by `kernel`; false, with `out` partly written,
+/// where a row needs the careful path (module comment).
+pub fn eval<K: Kernel>(kernel: &K, channels: usize, wi: Rows, wo: Rows, out: &mut [f32]) -> bool {
+    let rows: RowLoop<K> = rows_for_cpu::<K>();
+    let failed = AtomicBool::new(false);
+    out.par_chunks_mut(TASK_ROWS * channels).enumerate().for_each_init(
+        || vec![Floats::splat(0.0); channels],
+        |scratch, (t, o)| {
+            if !failed.load(Ordering::Relaxed) && !rows(kernel, wi, wo, t * TASK_ROWS, o, scratch) {
+                failed.store(true, Ordering::Relaxed);
+            }
+        },
+    );
+    !failed.into_inner()
+}
+
+/// A row loop: `rows` for kernel K, compiled for one instruction set.
+type RowLoop<K> = fn(&K, Rows, Rows, usize, &mut [f32], &mut [Floats]) -> bool;
+
+/// The row loop compiled for this CPU: AVX2 + FMA when it has them, else portable.
+fn rows_for_cpu<K: Kernel>() -> RowLoop<K> {
+    #[cfg(target_arch = "x86_64")]
+    if has_avx2() {
+        return |k, wi, wo, first, out, scratch| {
+            // SAFETY: the CPU supports every feature the function is compiled for.
+            unsafe { rows_avx2(k, wi, wo, first, out, scratch) }
+        };
+    }
+    rows::<K>
+}
+
+/// Whether the CPU has AVX2 and FMA (checked once, then cached by std).
+#[cfg(target_arch = "x86_64")]
+#[inline]
+pub fn has_avx2() -> bool {
+    std::arch::is_x86_feature_detected!("avx2") && std::arch::is_x86_feature_detected!("fma")
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2,fma")]
+unsafe fn rows_avx2<K: Kernel>(k: &K, wi: Rows, wo: Rows, first: usize, out: &mut [f32], f: &mut [Floats]) -> bool {
+    rows(k, wi, wo, first, out, f)
+}
+
+/// Rows first.. of the output slice `out`, LANES at a time; false at the first group with a row the engine does
+/// not take.
+#[inline(always)]
+fn rows<K: Kernel>(k: &K, wi: Rows, wo: Rows, first: usize, out: &mut [f32], f: &mut [Floats]) -> bool {
+    let channels = f.len();
+    for (g, o) in out.chunks_mut(LANES * channels).enumerate() {
+        let (r, m) = (first + g * LANES, o.len() / channels);
+        let ((wi, ok_i), (wo, ok_o)) = (unit(load(wi, r, m)), unit(load(wo, r, m)));
+        if (!(ok_i & ok_o)).any() {
+            return false;
+        }
+        k.eval(wi, wo, f);
+        // Clamped to the largest finite float32, as the float64 path's float32 output is: a grazing mirror pair with
+        // a denormal zenith can reach 1e41.
+        f.iter_mut().for_each(|v| *v = v.min(Floats::splat(f32::MAX)));
+        if m == LANES && channels == 3 {
+            // RGB: `load`'s transposition backwards, three permutations and the blends into three vectors.
+            let t: [Floats; 3] = std::array::from_fn(|c| Floats(std::array::from_fn(|l| f[c].0[ROW[c][l]])));
+            for (k, v) in o.chunks_exact_mut(LANES).enumerate() {
+                v.copy_from_slice(&std::array::from_fn::<f32, LANES, _>(|l| t[(LANES * k + l) % 3].0[l]));
+            }
+        } else {
+            for (i, row) in o.chunks_exact_mut(channels).enumerate() {
+                for (c, v) in row.iter_mut().enumerate() {
+                    *v = f[c].0[i];
+                }
+            }
+        }
+    }
+    true
+}
+
+/// HOLDER[c][l]: which of three vectors of LANES rows' (x, y, z) holds a component c in lane l.
+const HOLDER: [[usize; LANES]; 3] = holders();
+/// ROW[c][l]: the row whose component c lies in lane l.
+const ROW: [[usize; LANES]; 3] = rows_of_lanes();
+
+const fn holders() -> [[usize; LANES]; 3] {
+    let mut h = [[0; LANES]; 3];
+    let (mut c, mut i) = (0, 0);
+    while c < 3 {
+        while i < LANES {
+            h[c][(3 * i + c) % LANES] = (3 * i + c) / LANES;
+            i += 1;
+        }
+        (c, i) = (c + 1, 0);
+    }
+    h
+}
+
+const fn rows_of_lanes() -> [[usize; LANES]; 3] {
+    let mut r = [[0; LANES]; 3];
+    let (mut c, mut i) = (0, 0);
+    while c < 3 {
+        while i < LANES {
+            r[c][(3 * i + c) % LANES] = i;
+            i += 1;
+        }
+        (c, i) = (c + 1, 0);
+    }
+    r
+}
+
+/// Rows r..r + m (m ≤ LANES) as lanes; lanes past m hold the normal (0, 0, 1).
+#[inline(always)]
+fn load(rows: Rows, r: usize, m: usize) -> V3 {
+    match rows {
+        Rows::Splat(v) => V3::splat(v),
+        Rows::Packed(s) if m == LANES => {
+            // LANES rows are three vectors of LANES floats; component c of row i is lane (3i + c) mod LANES of
+            // vector (3i + c) / LANES (3 and LANES coprime). Per component: a blend of the three vectors (each lane from the vector that holds it
+            // there), then a permutation of the lanes: two blends and a permute instruction on AVX2.
+            let s = &s[3 * r..3 * r + 3 * LANES];
+            let v: [Floats; 3] = std::array::from_fn(|k| Floats(std::array::from_fn(|l| s[LANES * k + l])));
+            let lane = |c: usize| {
+                let t = Floats(std::array::from_fn(|l| v[HOLDER[c][l]].0[l]));
+                Floats(std::array::from_fn(|i| t.0[(3 * i + c) % LANES]))
+            };
+            V3 { x: lane(0), y: lane(1), z: lane(2) }
+        }
+        Rows::Packed(s) => {
+            let s = &s[3 * r..3 * (r + m)];
+            let lane = |c: usize, pad: f32| Floats(std::array::from_fn(|i| if i < m { s[3 * i + c] } else { pad }));
+            V3 { x: lane(0, 0.0), y: lane(1, 0.0), z: lane(2, 1.0) }
+        }
+    }
+}
+
+/// w normalised, and the lanes it can be in float32: a squared length that is a normal float32 (not NaN, Inf,
+/// zero, subnormal or overflowed). Always normalised, even when |w|² is within float32's rounding of 1: the sum of a
+/// nearly opposite pair (a half vector) turns a length error of 4e-8 into a direction error 5× larger, which moved a
+/// sharp GGX lobe's tail by 1.2e-5 when such directions were taken as unit (α = 0.01).
+#[inline(always)]
+pub fn unit(w: V3) -> (V3, Mask) {
+    let len2 = w.dot(w);
+    let ok = len2.ge(Floats::splat(f32::MIN_POSITIVE)) & len2.le(Floats::splat(f32::MAX));
+    (w.scale(1.0 / len2.sqrt()), ok)
+}
+
+#[cfg(test)]
+pub mod tests {
+    use super::*;
+
+    /// The kernel run through `rows` (the portable loop) and through `eval` (the CPU's), on the same rows:
+    /// (portable, dispatched) outputs.
+    pub fn both_backends<K: Kernel>(k: &K, channels: usize, wi: &[f32], wo: &[f32]) -> (Vec<f32>, Vec<f32>) {
+        let n = wi.len() / 3;
+        let (mut a, mut b) = (vec![0.0; n * channels], vec![0.0; n * channels]);
+        let mut f = vec![Floats::splat(0.0); channels];
+        assert!(rows(k, Rows::Packed(wi), Rows::Packed(wo), 0, &mut a, &mut f));
+        assert!(eval(k, channels, Rows::Packed(wi), Rows::Packed(wo), &mut b));
+        (a, b)
+    }
+
+    struct Dot;
+    impl Kernel for Dot {
+        #[inline(always)]
+        fn eval(&self, wi: V3, wo: V3, out: &mut [Floats]) {
+            out[0] = wi.dot(wo);
+            out[1] = wi.z.exp();
+        }
+    }
+
+    #[test]
+    fn rows_are_read_normalised_and_written_in_order_with_a_ragged_tail() {
+        let n = 2 * TASK_ROWS + 11;
+        let wi: Vec<f32> = (0..n).flat_map(|r| [0.0, 0.0, 1.0 + r as f32]).collect();
+        let wo: Vec<f32> = (0..n).flat_map(|r| [(r as f32).cos(), (r as f32).sin(), 0.0]).collect();
+        let mut out = vec![0.0; 2 * n];
+        assert!(eval(&Dot, 2, Rows::Packed(&wi), Rows::Packed(&wo), &mut out));
+        for r in 0..n {
+            assert_eq!(out[2 * r], 0.0, "row {r}");
+            assert_eq!(out[2 * r + 1], std::f32::consts::E, "row {r}");
+        }
+        let mut splat = vec![0.0; 2 * n];
+        assert!(eval(&Dot, 2, Rows::Splat([0.0, 0.0, 2.0]), Rows::Packed(&wo), &mut splat));
+        assert_eq!(splat, out);
+    }
+
+    #[test]
+    fn a_row_float32_cannot_take_sends_the_call_to_the_careful_path() {
+        let wo = [0.0, 0.0, 1.0].repeat(100);
+        for bad in [f32::NAN, f32::INFINITY, 0.0, 1e-30, 3e19] {
+            let mut wi = wo.clone();
+            wi[3 * 57..3 * 58].copy_from_slice(&[bad, 0.0, 0.0]);
+            let mut out = vec![0.0; 200];
+            assert!(!eval(&Dot, 2, Rows::Packed(&wi), Rows::Packed(&wo), &mut out), "{bad}");
+        }
+    }
+
+    #[test]
+    fn the_portable_and_the_cpu_loops_give_the_same_bits() {
+        let n = 1001;
+        let wi: Vec<f32> = (0..3 * n).map(|i| ((i * 7919) % 1000) as f32 / 500.0 - 1.0 + 1e-3).collect();
+        let wo: Vec<f32> = (0..3 * n).map(|i| ((i * 104_729) % 997) as f32 / 400.0 - 1.2 + 1e-3).collect();
+        let (a, b) = both_backends(&Dot, 2, &wi, &wo);
+        assert_eq!(
+            a.iter().map(|x| x.to_bits()).collect::<Vec<_>>(),
+            b.iter().map(|x| x.to_bits()).collect::<Vec<_>>()
+        );
+    }
+}
