@@ -53,9 +53,9 @@ def measure(fns: dict) -> dict:
     return {name: (float(np.median(t)), cold) for name, (t, cold) in measure_all(fns).items()}
 
 
-def hemisphere(rng, n: int) -> np.ndarray:
-    """n random directions above the surface (cos θ in [0.05, 1])."""
-    z = rng.uniform(0.05, 1, n)
+def hemisphere(rng, n: int, min_cos: float = 0.05) -> np.ndarray:
+    """n random directions above the surface (cos θ in [min_cos, 1])."""
+    z = rng.uniform(min_cos, 1, n)
     p = rng.uniform(0, 2 * np.pi, n)
     s = np.sqrt(1 - z * z)
     return np.stack([s * np.cos(p), s * np.sin(p), z], -1)

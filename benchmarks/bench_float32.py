@@ -11,18 +11,12 @@ from pathlib import Path
 
 import lamina
 import numpy as np
+from bench_conductor import hemisphere
 from docs_section import write_section
 from lamina.materials import SUITE, metal, population, suite
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "scripts"))
 import fuzz  # noqa: E402
-
-
-def hemisphere(rng, n: int) -> np.ndarray:
-    z = rng.uniform(0.02, 1, n)
-    p = rng.uniform(0, 2 * np.pi, n)
-    s = np.sqrt(1 - z * z)
-    return np.stack([s * np.cos(p), s * np.sin(p), z], -1).astype(np.float32)
 
 
 def worst(stack, model, wi, wo, **options) -> tuple[float, float]:
@@ -40,7 +34,7 @@ def worst(stack, model, wi, wo, **options) -> tuple[float, float]:
 
 def main() -> None:
     rng = np.random.default_rng(1)
-    wi, wo = hemisphere(rng, 100_000), hemisphere(rng, 100_000)
+    wi, wo = (hemisphere(rng, 100_000, min_cos=0.02).astype(np.float32) for _ in range(2))
     rows = []
     for name in SUITE:
         if name != "anisotropic-coat-metal":  # tabulated refuses anisotropic stacks

@@ -9,7 +9,7 @@
 //! and once portably. `min`/`max` follow the x86 `minps`/`maxps` rule (the second operand when either
 //! is NaN), so that a clamp of a NaN gives the bound on every backend.
 
-use std::ops::{Add, BitAnd, BitOr, Div, Mul, Neg, Not, Sub};
+use std::ops::{Add, BitAnd, Div, Mul, Neg, Not, Sub};
 
 /// Lanes per `Floats`.
 pub const LANES: usize = 16;
@@ -110,11 +110,6 @@ impl Floats {
     }
 
     #[inline(always)]
-    pub fn abs(self) -> Floats {
-        map(|i| self.0[i].abs())
-    }
-
-    #[inline(always)]
     pub fn lt(self, b: Floats) -> Mask {
         mask(|i| self.0[i] < b.0[i])
     }
@@ -132,12 +127,6 @@ impl Floats {
     #[inline(always)]
     pub fn ge(self, b: Floats) -> Mask {
         mask(|i| self.0[i] >= b.0[i])
-    }
-
-    /// Lanes that hold a finite number (neither NaN nor ±Inf).
-    #[inline(always)]
-    pub fn is_finite(self) -> Mask {
-        mask(|i| self.0[i].abs() <= f32::MAX)
     }
 
     /// Lane i: a[i] where m[i] is set, else b[i].
@@ -193,14 +182,6 @@ impl BitAnd for Mask {
     }
 }
 
-impl BitOr for Mask {
-    type Output = Mask;
-    #[inline(always)]
-    fn bitor(self, b: Mask) -> Mask {
-        Mask(std::array::from_fn(|i| self.0[i] | b.0[i]))
-    }
-}
-
 impl Not for Mask {
     type Output = Mask;
     #[inline(always)]
@@ -214,12 +195,6 @@ impl Mask {
     #[inline(always)]
     pub fn any(self) -> bool {
         self.0.iter().fold(0, |a, &m| a | m) != 0
-    }
-
-    /// Whether every lane is set.
-    #[inline(always)]
-    pub fn all(self) -> bool {
-        self.0.iter().fold(u32::MAX, |a, &m| a & m) == u32::MAX
     }
 }
 
