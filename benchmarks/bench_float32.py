@@ -39,11 +39,13 @@ def main() -> None:
     for name in SUITE:
         if name != "anisotropic-coat-metal":  # tabulated refuses anisotropic stacks
             rows.append((f"suite: {name}", "tabulated", *worst(suite(name), "tabulated", wi, wo)))
+    for name in SUITE:
+        rows.append((f"suite: {name}", "belcour", *worst(suite(name), "belcour", wi, wo)))
     for roughness in [1.0, 0.3, 0.1, (0.1, 0.5), 0.05, 0.01, 1e-3]:
         stack = lamina.Stack([metal("Au", roughness, angle=0.3)])
         rows.append((f"gold, roughness {roughness}, rotated frame", "microfacet", *worst(stack, "microfacet", wi, wo)))
     pop = [s for _, s in population(20, seed=2)]
-    for model in ("tabulated", "microfacet"):
+    for model in ("tabulated", "belcour", "microfacet"):
         errs = []
         for stack in pop:
             if model == "microfacet":
@@ -54,11 +56,12 @@ def main() -> None:
                 continue  # the model cannot represent the stack
         rows.append((f"held-out population (seed 2), {len(errs)} stacks", model, *np.max(errs, axis=0)))
     frng = np.random.default_rng(5)
-    errs = {"microfacet": [], "tabulated": []}
+    errs = {"microfacet": [], "tabulated": [], "belcour": []}
     for _ in range(60):
         stack = fuzz.random_stack(frng)
         fwi, fwo = fuzz.directions(frng, 4000, np.float32)
-        for model, s in [("microfacet", lamina.Stack(stack.layers[-1:], ext_ior=stack.ext_ior)), ("tabulated", stack)]:
+        single = lamina.Stack(stack.layers[-1:], ext_ior=stack.ext_ior)
+        for model, s in [("microfacet", single), ("tabulated", stack), ("belcour", stack)]:
             try:
                 errs[model].append(worst(s, model, fwi, fwo))
             except ValueError:
@@ -73,7 +76,7 @@ def main() -> None:
         "tests/test_engine.py; here the worst cases.",
         "",
         "float32 directions are evaluated in float32 lanes by the models with a lane kernel (`microfacet`'s rough GGX "
-        "conductor, `tabulated`); the same float32 directions as float64 take the float64 path. Relative error where "
+        "conductor, `tabulated`, `belcour`'s interpolated table); the same float32 directions as float64 take the float64 path. Relative error where "
         "f ≥ 1e-3 of the stack's peak, absolute error / peak elsewhere; 100,000 random pairs (20,000 for the "
         "population; 4,000 of the fuzz's extreme pairs per fuzz stack).",
         "",

@@ -1,5 +1,5 @@
 """The float32 engine (src/engine): float32 directions are evaluated in float32 lanes by the models that have a lane
-kernel (`microfacet`'s rough GGX conductor, `tabulated`); float64 directions keep the float64 path. Here the float32
+kernel (`microfacet`'s rough GGX conductor, `tabulated`, `belcour`'s interpolated table); float64 directions keep the float64 path. Here the float32
 result is held to the float64 one on the same float32 inputs, on the suite, the held-out population and the fuzz's
 extreme stacks and pairs.
 
@@ -31,18 +31,25 @@ import fuzz  # noqa: E402
 ISOTROPIC = [name for name in SUITE if name != "anisotropic-coat-metal"]
 
 
-def _conditioning(stack, wi, wo) -> np.ndarray:
+def _conditioning(stack, wi, wo, model="") -> np.ndarray:
     """The relative error float32 directions allow in a GGX lobe of the top boundary, per pair: 4e-7 / (α |wi + wo|)
-    with α the top's smaller roughness (at least Microfacet's MIN_ALPHA, 1e-4); 0 for a smooth or diffuse top."""
-    alpha = np.atleast_1d(stack.layers[0].roughness)
-    if not isinstance(stack.layers[0], (lamina.Dielectric, lamina.Conductor)) or alpha.max() == 0:
+    with α the top's smaller roughness (at least Microfacet's MIN_ALPHA, 1e-4); 0 for a smooth or diffuse top.
+    `belcour`'s lobes carry the roughness of every interface: there α is the smallest of any rough layer, whose lobe
+    (anisotropic, with its small eigenvalue taken from float32 roughness matrices) is as sharp as that."""
+    interfaces = [layer for layer in stack.layers if isinstance(layer, (lamina.Dielectric, lamina.Conductor))]
+    if model == "belcour":
+        rough = [a for layer in interfaces for a in np.atleast_1d(layer.roughness) if a > 0]
+    else:
+        top = np.atleast_1d(stack.layers[0].roughness) if stack.layers[0] in interfaces else np.zeros(1)
+        rough = list(top) if top.max() > 0 else []
+    if not rough:
         return np.zeros(len(wi))
     h = np.linalg.norm(
         wi.astype(np.float64) / np.linalg.norm(wi, axis=-1, keepdims=True)
         + wo.astype(np.float64) / np.linalg.norm(wo, axis=-1, keepdims=True),
         axis=-1,
     )
-    return 4e-7 / (max(alpha.min(), 1e-4) * np.maximum(h, 1e-30))
+    return 4e-7 / (max(min(rough), 1e-4) * np.maximum(h, 1e-30))
 
 
 def _sensitivity(stack, model, wi, wo, **options) -> np.ndarray:
@@ -70,7 +77,7 @@ def _compare(stack, model, wi, wo, **options) -> float:
         assert (a == 0).all()
         return 0.0
     big = b >= 1e-3 * peak
-    rel = np.maximum(1e-5, _conditioning(stack, wi, wo))[:, None]
+    rel = np.maximum(1e-5, _conditioning(stack, wi, wo, model))[:, None]
     # Below 1e-12 the float64 path's own rounding (of a Fresnel term that vanishes, η = 1, κ = 0) is compared
     # absolutely.
     bound = np.maximum(np.where(big, rel * b, np.maximum(1e-8, rel) * peak), 1e-12)
@@ -92,6 +99,40 @@ def test_tabulated_in_float32_is_within_1e5_of_float64_on_the_suite(name):
     # Measured: 7.0e-6 at most on these pairs (7.7e-6 on docs/benchmarks.md's 100,000).
     wi, wo = _directions(20_000, 1)
     assert _compare(suite(name), "tabulated", wi, wo) <= 1e-5
+
+
+@pytest.mark.parametrize("options", [{}, {"symmetric": True}, {"g2": "separable"}])
+@pytest.mark.parametrize("name", SUITE)
+def test_belcour_in_float32_is_within_1e5_of_float64_on_the_suite(name, options):
+    # The interpolated table read in float32 lanes, the anisotropic coat's roughness matrices eigen-decomposed there.
+    # Measured on these pairs: 8.1e-6 at most (the anisotropic coat), 5e-6 on the isotropic stacks.
+    wi, wo = _directions(20_000, 1)
+    assert _compare(suite(name), "belcour", wi, wo, **options) <= 1e-5
+
+
+def test_belcour_on_the_held_out_population_and_the_fuzz_in_float32():
+    # The held-out population (seed 2, anisotropic stacks included) and the fuzz's extreme stacks and pairs, with the
+    # bounds of `_compare`; no NaN, Inf or negative value on the fuzz's pairs.
+    def represented(stack) -> bool:
+        try:
+            stack.eval([0, 0, 1.0], [0, 0, 1.0], "belcour")
+        except ValueError as e:
+            assert "Lambertian diffuse base" in str(e)  # the one stack belcour refuses, and says so
+            return False
+        return True
+
+    wi, wo = _directions(5_000, 4)
+    checked = [_compare(s, "belcour", wi, wo) for _, s in population(8, seed=2) if represented(s)]
+    assert len(checked) >= 4
+    rng = np.random.default_rng(5)
+    for _ in range(40):
+        stack = fuzz.random_stack(rng)
+        wi, wo = fuzz.directions(rng, 2000, np.float32)
+        if not represented(stack):
+            continue
+        f = stack.eval(wi, wo, "belcour")
+        assert np.isfinite(f).all() and (f >= 0).all()
+        _compare(stack, "belcour", wi, wo)
 
 
 @pytest.mark.parametrize("g2", ["separable", "height_correlated"])

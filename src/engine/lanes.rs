@@ -221,12 +221,8 @@ impl V3 {
 
     /// The vector in the tangent frame rotated by the angle of cosine c and sine s about z (optics::to_tangent_frame).
     #[inline(always)]
-    pub fn rotate(self, c: f32, s: f32) -> V3 {
-        V3 {
-            x: self.x.mul_add(Floats::splat(c), self.y * s),
-            y: self.y.mul_add(Floats::splat(c), -(self.x * s)),
-            z: self.z,
-        }
+    pub fn rotate(self, c: Floats, s: Floats) -> V3 {
+        V3 { x: self.x.mul_add(c, self.y * s), y: self.y.mul_add(c, -(self.x * s)), z: self.z }
     }
 }
 

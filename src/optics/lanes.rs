@@ -107,17 +107,18 @@ pub fn dielectric(cos: Floats, eta: f64) -> Floats {
     Floats::select(cos2_t.le(zero), one, 0.5 * r_s.mul_add(r_s, r_p * r_p))
 }
 
-/// A GGX microfacet interface as the lanes' reflection takes it.
+/// A GGX microfacet interface as the lanes' reflection takes it: one roughness for every lane (`new`) or a roughness
+/// per lane (`lanes`: Belcour's interpolated lobes).
 #[derive(Clone, Copy, Debug)]
 pub struct Ggx {
     /// αx², αy², 1 / αx², 1 / αy², 1 / (π αx αy).
-    ax2: f32,
-    ay2: f32,
-    inv_ax2: f32,
-    inv_ay2: f32,
-    norm: f32,
+    ax2: Floats,
+    ay2: Floats,
+    inv_ax2: Floats,
+    inv_ay2: Floats,
+    norm: Floats,
     /// (cos, sin) of the tangent frame's rotation, None for the unrotated frame.
-    frame: Option<(f32, f32)>,
+    frame: Option<(Floats, Floats)>,
     height_correlated: bool,
 }
 
@@ -130,15 +131,33 @@ impl Ggx {
         }
         let (ax, ay) = (mf.alpha_x, mf.alpha_y);
         let (c, s) = mf.frame();
+        let splat = |x: f64| Floats::splat(x as f32);
         Some(Ggx {
-            ax2: (ax * ax) as f32,
-            ay2: (ay * ay) as f32,
-            inv_ax2: (1.0 / (ax * ax)) as f32,
-            inv_ay2: (1.0 / (ay * ay)) as f32,
-            norm: (std::f64::consts::FRAC_1_PI / (ax * ay)) as f32,
-            frame: (s != 0.0).then_some((c as f32, s as f32)),
+            ax2: splat(ax * ax),
+            ay2: splat(ay * ay),
+            inv_ax2: splat(1.0 / (ax * ax)),
+            inv_ay2: splat(1.0 / (ay * ay)),
+            norm: splat(std::f64::consts::FRAC_1_PI / (ax * ay)),
+            frame: (s != 0.0).then_some((splat(c), splat(s))),
             height_correlated: g2 == G2Form::HeightCorrelated,
         })
+    }
+
+    /// GGX of roughness (αx, αy) > 0 per lane, along the tangent frame rotated by (cos, sin) per lane (None: the
+    /// local frame), with a Smith G2 (`height_correlated` or separable): one division for the four reciprocals.
+    #[inline(always)]
+    pub fn lanes(ax: Floats, ay: Floats, frame: Option<(Floats, Floats)>, height_correlated: bool) -> Ggx {
+        let r = 1.0 / (ax * ay);
+        let (inv_ax, inv_ay) = (ay * r, ax * r);
+        Ggx {
+            ax2: ax * ax,
+            ay2: ay * ay,
+            inv_ax2: inv_ax * inv_ax,
+            inv_ay2: inv_ay * inv_ay,
+            norm: r * std::f32::consts::FRAC_1_PI,
+            frame,
+            height_correlated,
+        }
     }
 }
 
@@ -160,9 +179,8 @@ pub fn ggx_reflection(g: &Ggx, wi: V3, wo: V3) -> (Floats, Floats) {
     };
     let h2 = h.dot(h);
     let cos_h = 0.5 * h2.sqrt();
-    let s = (h.x * h.x).mul_add(Floats::splat(g.inv_ax2), (h.y * h.y).mul_add(Floats::splat(g.inv_ay2), h.z * h.z));
-    let sigma =
-        |w: V3| (w.x * w.x).mul_add(Floats::splat(g.ax2), (w.y * w.y).mul_add(Floats::splat(g.ay2), w.z * w.z)).sqrt();
+    let s = (h.x * h.x).mul_add(g.inv_ax2, (h.y * h.y).mul_add(g.inv_ay2, h.z * h.z));
+    let sigma = |w: V3| (w.x * w.x).mul_add(g.ax2, (w.y * w.y).mul_add(g.ay2, w.z * w.z)).sqrt();
     let (si, so) = (sigma(wi), sigma(wo));
     let masking = if g.height_correlated { 2.0 * wo.z.mul_add(si, wi.z * so) } else { (wi.z + si) * (wo.z + so) };
     let geo = h2 * h2 * g.norm / (s * s * masking);

@@ -39,6 +39,7 @@
 
 mod adding;
 mod cov;
+mod lanes;
 mod table;
 
 pub use adding::Tir;
@@ -48,6 +49,7 @@ use super::common::options::{choice, flag, variant, G2, MICROFACET_TRANSMISSION,
 use super::corrections::transport_fit;
 use super::{Args, InputSpec, Inputs, Model, ModelInfo, OptionSpec, Properties, Proposal};
 use crate::bsdf;
+use crate::engine::Rows;
 use crate::error::{value_error, Result};
 use crate::optics::distribution::{Distribution, G2Form, Microfacet};
 use crate::stack::{Layer, Stack};
@@ -132,6 +134,8 @@ pub struct Prepared {
     anisotropic: bool,
     diffuse: Option<DiffuseBase>,
     table: Option<LobeTable>,
+    /// The table in float32, for float32 inputs (lanes.rs).
+    table_f32: Option<lanes::TableF32>,
     opts: Options,
     channels: usize,
 }
@@ -169,13 +173,23 @@ pub fn prepare(stack: &Stack, opts: &Options) -> Result<Prepared> {
         }
     }
     let anisotropic = steps.iter().any(|s| matches!(s, Step::Interface { alpha, .. } if alpha.0 != alpha.1));
-    let mut p = Prepared { steps, anisotropic, diffuse: None, table: None, opts: *opts, channels: stack.channels };
+    let mut p = Prepared {
+        steps,
+        anisotropic,
+        diffuse: None,
+        table: None,
+        table_f32: None,
+        opts: *opts,
+        channels: stack.channels,
+    };
     if let Some(mut d) = diffuse {
         d.r_up = p.hemispherical_reflectance_from_below(d.eta);
         p.diffuse = Some(d);
     }
     if opts.interpolated {
-        p.table = Some(p.tabulate());
+        let t = p.tabulate();
+        p.table_f32 = lanes::TableF32::new(&p, &t);
+        p.table = Some(t);
     }
     Ok(p)
 }
@@ -183,6 +197,10 @@ pub fn prepare(stack: &Stack, opts: &Options) -> Result<Prepared> {
 impl Model for Prepared {
     fn eval_block(&self, wi: [&[f64]; 3], wo: [&[f64]; 3], _: &Inputs, out: &mut [f64]) {
         super::common::block::simd_columns!(Prepared, self, wi, wo, out)
+    }
+
+    fn eval_f32(&self, wi: Rows, wo: Rows, out: &mut [f32]) -> bool {
+        lanes::eval(self, wi, wo, out)
     }
 
     fn proposals(&self, wo: DVec3) -> Vec<(f64, Proposal)> {

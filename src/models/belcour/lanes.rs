@@ -1,0 +1,223 @@
+//! The interpolated adding-doubling (table.rs) in float32 lanes: the table's records as float32, read per lane at the
+//! two (isotropic) or four (anisotropic: bilinear in the azimuth) corners of the viewing direction, then each lobe's
+//! GGX shape and energies, then the diffuse base; the same arithmetic as `Prepared::eval_columns`.
+
+use super::table::LobeTable;
+use super::Prepared;
+use crate::engine::{self, Floats, Mask, Rows, LANES, V3};
+use crate::optics::distribution::{G2Form, MIN_ALPHA};
+use crate::optics::lanes::{ggx_reflection, Ggx};
+use crate::tables::node_lanes;
+use std::f32::consts::{FRAC_PI_2, FRAC_PI_4, PI};
+
+/// Interpolated values per lane at the most (lobes × record width): a stack with more runs on the float64 path.
+const MAX_VALUES: usize = 32;
+
+/// A table in float32 and what the kernel needs besides: built once per stack at `prepare`.
+pub(super) struct TableF32 {
+    lobes: usize,
+    nodes: usize,
+    azimuths: usize,
+    width: usize,
+    record: Vec<f32>,
+    t_down: Vec<f32>,
+    t_up: Vec<f32>,
+    /// ρ / (π (1 − ρ R̄↑) η²) per channel: the diffuse base's factor on T↓ T↑; empty without a base.
+    diffuse: Vec<f32>,
+}
+
+impl TableF32 {
+    /// The lane form of table `t`; None where the lanes do not cover it (too many values per record).
+    pub(super) fn new(p: &Prepared, t: &LobeTable) -> Option<TableF32> {
+        let f32s = |v: &[f64]| v.iter().map(|&x| x as f32).collect();
+        let diffuse = p.diffuse.as_ref().map_or(vec![], |d| {
+            let scale = |(rho, r_up): (&f64, &f64)| rho / (std::f64::consts::PI * (1.0 - rho * r_up) * d.eta * d.eta);
+            d.albedo.iter().zip(&d.r_up).map(scale).map(|x| x as f32).collect()
+        });
+        (t.lobes * t.width <= MAX_VALUES).then(|| TableF32 {
+            lobes: t.lobes,
+            nodes: t.nodes,
+            azimuths: t.azimuths,
+            width: t.width,
+            record: f32s(&t.record),
+            t_down: f32s(&t.t_down),
+            t_up: f32s(&t.t_up),
+            diffuse,
+        })
+    }
+}
+
+/// The corners of one direction per lane: run indices and bilinear weights (two corners in an isotropic table).
+struct Corners {
+    index: [[u32; LANES]; 4],
+    weight: [Floats; 4],
+    count: usize,
+}
+
+/// Table corners of cosines `cos` at azimuths (x, y) per lane: linear in √cos θ and in the azimuth's `pseudo_angle`,
+/// as `Prepared::corners`.
+#[inline(always)]
+fn corners(t: &TableF32, cos: Floats, x: Floats, y: Floats) -> Corners {
+    let (k, fk) = node_lanes(cos.max(Floats::splat(0.0)).sqrt(), t.nodes);
+    let one = Floats::splat(1.0);
+    if t.azimuths == 1 {
+        let (i0, i1) = (k, k.map(|k| k + 1));
+        return Corners { index: [i0, i1, i0, i1], weight: [one - fk, fk, fk, fk], count: 2 };
+    }
+    let n = t.azimuths as u32;
+    let v = pseudo_angle(x, y) * (n as f32 / PI);
+    let a: [u32; LANES] = std::array::from_fn(|l| (v.0[l] as u32).min(n - 1));
+    let fa = v - Floats(std::array::from_fn(|l| a[l] as f32));
+    let b = a.map(|a| if a + 1 == n { 0 } else { a + 1 });
+    let run = |dk: u32, az: &[u32; LANES]| std::array::from_fn(|l| (k[l] + dk) * n + az[l]);
+    Corners {
+        index: [run(0, &a), run(1, &a), run(0, &b), run(1, &b)],
+        weight: [(one - fk) * (one - fa), fk * (one - fa), (one - fk) * fa, fk * fa],
+        count: 4,
+    }
+}
+
+/// Σ_q weight_q values[index_q · stride + offset + i] for i < n ≤ N per lane: one table's interpolation, a value at a
+/// time across the lanes (gathers).
+#[inline(always)]
+fn interpolate<const N: usize>(c: &Corners, values: &[f32], stride: usize, offset: usize, n: usize) -> [Floats; N] {
+    let base: [[usize; LANES]; 4] = std::array::from_fn(|q| c.index[q].map(|k| k as usize * stride + offset));
+    let mut v = [Floats::splat(0.0); N];
+    for (i, v) in v[..n].iter_mut().enumerate() {
+        for q in 0..c.count {
+            *v = c.weight[q].mul_add(Floats(std::array::from_fn(|l| values[base[q][l] + i])), *v);
+        }
+    }
+    v
+}
+
+/// The kernel: the stack's float32 table and options.
+pub(super) struct Lanes<'a> {
+    t: &'a TableF32,
+    channels: usize,
+    symmetric: bool,
+    height_correlated: bool,
+}
+
+/// f of float32 rows by the lanes, if the stack has a float32 table and a Smith G2 (module comment).
+pub(super) fn eval(p: &Prepared, wi: Rows, wo: Rows, out: &mut [f32]) -> bool {
+    let Some(t) = &p.table_f32 else { return false };
+    if p.opts.g2 == G2Form::VCavity {
+        return false;
+    }
+    let height_correlated = p.opts.g2 == G2Form::HeightCorrelated;
+    let kernel = Lanes { t, channels: p.channels, symmetric: p.opts.symmetric, height_correlated };
+    engine::eval(&kernel, p.channels, wi, wo, out)
+}
+
+impl engine::Kernel for Lanes<'_> {
+    #[inline(always)]
+    fn eval(&self, wi: V3, wo: V3, out: &mut [Floats]) {
+        let (t, zero) = (self.t, Floats::splat(0.0));
+        out.fill(zero);
+        let cos_theta = if self.symmetric { symmetric_cosine(wi, wo) } else { wo.z };
+        let at = corners(t, cos_theta, wo.x, wo.y);
+        let n = t.lobes * t.width;
+        let values: [Floats; MAX_VALUES] = interpolate(&at, &t.record, n, 0, n);
+        for lobe in values[..n].chunks_exact(t.width) {
+            // The roughness per lane (the anisotropic tables' roughness matrix eigen-decomposed), the lobe's shape,
+            // its energies: a lobe of roughness 0 is a Dirac delta, not part of f.
+            let (ax, ay, frame, energy) = if t.azimuths > 1 {
+                let (ax, ay, cos, sin) = eigen_frame(lobe[0], lobe[1], lobe[2]);
+                (ax, ay, Some((cos, sin)), &lobe[3..])
+            } else {
+                (lobe[0], lobe[0], None, &lobe[1..])
+            };
+            let smooth = ax.le(zero) & ay.le(zero);
+            let min = Floats::splat(MIN_ALPHA as f32);
+            let ggx = Ggx::lanes(ax.max(min), ay.max(min), frame, self.height_correlated);
+            let shape = Floats::select(smooth, zero, ggx_reflection(&ggx, wi, wo).0);
+            for (o, e) in out.iter_mut().zip(energy) {
+                *o = e.mul_add(shape, *o);
+            }
+        }
+        if !t.diffuse.is_empty() {
+            // T↓ at θi and T↑ at θo: the lobes' corners serve for wo unless they were found at |wo·h|.
+            let c = self.channels;
+            let down: [Floats; MAX_VALUES] = interpolate(&corners(t, wi.z, wi.x, wi.y), &t.t_down, c, 0, c);
+            let up_at = if self.symmetric { corners(t, wo.z, wo.x, wo.y) } else { at };
+            let up: [Floats; MAX_VALUES] = interpolate(&up_at, &t.t_up, c, 0, c);
+            let above = wi.z.gt(zero) & wo.z.gt(zero);
+            for (ch, o) in out.iter_mut().enumerate() {
+                *o = *o + Floats::and(above, Floats::splat(t.diffuse[ch]) * down[ch] * up[ch]);
+            }
+        }
+    }
+}
+
+/// |wo·h| with h the half vector (Belcour 2018 §6; super::symmetric_cosine), as |wi + wo| / 2 for unit directions
+/// (without wo·(wi + wo)'s cancellation); wo·n where wi + wo is zero.
+#[inline(always)]
+fn symmetric_cosine(wi: V3, wo: V3) -> Floats {
+    let h = wi.plus(wo);
+    let h2 = h.dot(h);
+    Floats::select(h2.gt(Floats::splat(0.0)), 0.5 * h2.sqrt(), wo.z)
+}
+
+/// `table::pseudo_angle` in lanes: a monotonic stand-in for the azimuth modulo π (Rajan et al. 2006's octant
+/// arctangent), 0 at the normal.
+#[inline(always)]
+fn pseudo_angle(x: Floats, y: Floats) -> Floats {
+    let fold: Mask = y.lt(Floats::splat(0.0));
+    let (x, y) = (Floats::select(fold, -x, x), Floats::select(fold, -y, y));
+    let ax = x.max(-x);
+    let t = ax.min(y) / ax.max(y);
+    let a = t * (0.273 * (1.0 - t) + FRAC_PI_4);
+    let a = Floats::select(y.gt(ax), FRAC_PI_2 - a, a);
+    let p = Floats::select(x.lt(Floats::splat(0.0)), PI - a, a);
+    // NaN (the normal: 0/0) and π fold to 0.
+    Floats::select(p.lt(Floats::splat(PI)), p, Floats::splat(0.0))
+}
+
+/// `Cov::eigen_frame` in lanes: (λ₁, λ₂, cos, sin) of the symmetric matrix (xx, xy, yy), the eigenvector of λ₁ ≥ λ₂
+/// in (−π/2, π/2], (v, v, 1, 0) for vI.
+#[inline(always)]
+fn eigen_frame(xx: Floats, xy: Floats, yy: Floats) -> (Floats, Floats, Floats, Floats) {
+    let zero = Floats::splat(0.0);
+    let (mean, half) = (0.5 * (xx + yy), 0.5 * (xx - yy));
+    let r = half.mul_add(half, xy * xy).sqrt();
+    let upper = half.ge(zero);
+    let (x, y) = (Floats::select(upper, half + r, xy), Floats::select(upper, xy, r - half));
+    let flip = x.lt(zero);
+    let (x, y) = (Floats::select(flip, -x, x), Floats::select(flip, -y, y));
+    let inv = 1.0 / x.mul_add(x, y * y).sqrt();
+    let round = r.gt(zero);
+    let (cos, sin) = (Floats::select(round, x * inv, Floats::splat(1.0)), Floats::and(round, y * inv));
+    (mean + r, mean - r, cos, sin)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::super::cov::Cov;
+    use super::super::table::pseudo_angle as pseudo_angle_f64;
+    use super::*;
+
+    #[test]
+    fn pseudo_angle_and_eigen_frame_are_their_float64_twins() {
+        let (mut worst_p, mut worst_e) = (0.0f64, 0.0f64);
+        for k in 0..LANES * 500 {
+            let phi = 2.0 * std::f64::consts::PI * k as f64 / (LANES * 500) as f64;
+            let (x, y) = ((phi.cos() as f32) as f64, (phi.sin() as f32) as f64);
+            let p = pseudo_angle(Floats::splat(x as f32), Floats::splat(y as f32)).0[0] as f64;
+            // Both fold at π: compare on the circle.
+            let d = (p - pseudo_angle_f64(x, y)).abs();
+            worst_p = worst_p.max(d.min(std::f64::consts::PI - d));
+            let c = Cov::oriented(0.02 + 0.5 * (k % 7) as f64 / 7.0, 0.01 + 0.3 * (k % 5) as f64 / 5.0, phi);
+            let (l1, l2, cos, sin) = c.eigen_frame();
+            let s = |v: f64| Floats::splat(v as f32);
+            let (m1, m2, mc, ms) = eigen_frame(s(c.xx), s(c.xy), s(c.yy));
+            let e = [(m1.0[0], l1), (m2.0[0], l2), (mc.0[0], cos), (ms.0[0], sin)];
+            worst_e = e.iter().fold(worst_e, |w, &(a, b)| w.max((a as f64 - b).abs()));
+        }
+        assert!(worst_p < 1e-6, "pseudo angle {worst_p}");
+        assert!(worst_e < 1e-6, "eigen frame {worst_e}");
+        let (l1, l2, c, s) = eigen_frame(Floats::splat(0.2), Floats::splat(0.0), Floats::splat(0.2));
+        assert_eq!((l1.0[0], l2.0[0], c.0[0], s.0[0]), (0.2, 0.2, 1.0, 0.0));
+        assert_eq!(pseudo_angle(Floats::splat(0.0), Floats::splat(0.0)).0[0], 0.0);
+    }
+}
