@@ -1,7 +1,7 @@
 """The float32 engine (src/engine): float32 directions are evaluated in float32 lanes by the models that have a lane
-kernel (`microfacet`'s rough GGX conductor, `tabulated`, `belcour`'s interpolated table); float64 directions keep the float64 path. Here the float32
-result is held to the float64 one on the same float32 inputs, on the suite, the held-out population and the fuzz's
-extreme stacks and pairs.
+kernel (`microfacet`'s rough GGX conductor, `tabulated`, `belcour`'s interpolated table); float64 directions keep the
+float64 path. Here the float32 result is held to the float64 one on the same float32 inputs, on the suite, the
+held-out population and the fuzz's extreme stacks and pairs.
 
 The bound (issue "Engine"): relative 1e-5 where f ≥ 1e-3 of the peak, absolute 1e-8 of the peak elsewhere, and 0 below
 the horizon on both paths. A float32 unit direction is unit only to its rounding (±3e-8 per component), and a GGX
