@@ -97,11 +97,11 @@ def numpy_conductor(wi, wo):
     return geo[:, None] * 0.5 * (rs + rp)
 
 
-def mitsuba_conductor():
-    """Mitsuba 3's `roughconductor` (llvm_ad_rgb, GGX, α = ALPHA, the RGB complex IOR ETA + iK): the peer."""
+def mitsuba_conductor(variant: str = "llvm_ad_rgb"):
+    """Mitsuba 3's `roughconductor` (GGX, α = ALPHA, the RGB complex IOR ETA + iK) on `variant`: the peer."""
     import mitsuba as mi
 
-    mi.set_variant("llvm_ad_rgb")
+    mi.set_variant(variant)
     return mi.load_dict(
         {
             "type": "roughconductor",

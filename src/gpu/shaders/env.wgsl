@@ -205,8 +205,9 @@ fn render_mesh_env(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_w
     if px == rp.width * rp.height {
         return;
     }
-    let d = camera_ray(px)[1];
-    let hit = camera_surface(px, d);
+    let ray = camera_ray(px);
+    let d = ray[1];
+    let hit = camera_surface(px, ray[0], d);
     var rgb = env_radiance(d);
     if hit.found {
         rgb = shade_env(hit, d, t * params.channels, px);

@@ -36,14 +36,41 @@ fn surface(k: u32, b: vec3<f32>) -> Hit {
     return Hit(true, p, n, t, uv);
 }
 
-// The surface the camera pass (raster.wgsl) found at pixel px, whose ray runs along d, with its normal turned towards
-// the viewer (Mesh::intersect).
-fn camera_surface(px: u32, d: vec3<f32>) -> Hit {
-    var hit = visible(textureLoad(visibility_target, vec2<u32>(px % rp.width, px / rp.width), 0));
+// The surface the camera pass (raster.wgsl) found at pixel px, whose ray runs from o along d, with its normal turned
+// towards the viewer (Mesh::intersect). The pass gives the triangle; its barycentrics come from the ray, as on the
+// CPU: a rasterizer's interpolated ones are only as precise as its hardware (NVIDIA's: 1e-3 off in shading).
+fn camera_surface(px: u32, o: vec3<f32>, d: vec3<f32>) -> Hit {
+    let texel = textureLoad(visibility_target, vec2<u32>(px % rp.width, px / rp.width), 0);
+    var hit = visible(texel);
+    if !hit.found {
+        return hit;
+    }
+    let k = u32(texel.x);
+    let v = vec3<u32>(triangles[3u * k], triangles[3u * k + 1u], triangles[3u * k + 2u]);
+    let b = ray_triangle(o, d, vertex_vec3(v.x, 0u), vertex_vec3(v.y, 0u), vertex_vec3(v.z, 0u));
+    if b.z > 0.0 {
+        hit = surface(k, vec3<f32>(1.0 - b.x - b.y, b.x, b.y));
+    }
     if dot(hit.n, d) > 0.0 {
         hit.n = -hit.n;
     }
     return hit;
+}
+
+// Mesh::ray_triangle (Möller and Trumbore 1997) for a triangle the ray is known to hit: (b1, b2, 1), clamped into
+// the triangle (the pixel centre may lie a rounding error outside it), or z = 0 where the ray runs in its plane.
+fn ray_triangle(o: vec3<f32>, d: vec3<f32>, p0: vec3<f32>, p1: vec3<f32>, p2: vec3<f32>) -> vec3<f32> {
+    let e1 = p1 - p0;
+    let e2 = p2 - p0;
+    let q = cross(d, e2);
+    let det = dot(e1, q);
+    if abs(det) < 1e-14 {
+        return vec3<f32>(0.0);
+    }
+    let r = o - p0;
+    var b = clamp(vec2<f32>(dot(r, q), dot(d, cross(r, e1))) / det, vec2<f32>(0.0), vec2<f32>(1.0));
+    b = b / max(1.0, b.x + b.y);
+    return vec3<f32>(b, 1.0);
 }
 
 // The surface point a visibility texel (triangle, b1, b2, covered) records; found = false where nothing is.

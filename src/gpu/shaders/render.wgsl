@@ -59,8 +59,9 @@ fn render_mesh(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workg
     if px == rp.width * rp.height {
         return;
     }
-    let d = camera_ray(px)[1];
-    let hit = camera_surface(px, d);
+    let ray = camera_ray(px);
+    let d = ray[1];
+    let hit = camera_surface(px, ray[0], d);
     var rgb = vec3<f32>(0.0);
     if hit.found {
         rgb = shade_lights(hit, d, t * params.channels);
