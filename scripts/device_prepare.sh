@@ -2,16 +2,16 @@
 # Packs, on a machine that reaches the package registries, what scripts/device_check.sh needs on a GPU machine that
 # reaches none (this project's lent NVIDIA machines: Python 3.12 with NumPy, pytest and Hypothesis, no Rust, no
 # Vulkan loader, no Mitsuba): the extension built here (`make develop`, default features: python/lamina/*.so), and
-# in .device/ (git-ignored) the Vulkan loader's and glvnd's Debian packages and a slim Mitsuba 3 + Dr.Jit for that Python (the
-# variants scalar_rgb, llvm_ad_rgb and cuda_ad_rgb and the plugins the benchmarks' scenes load; the full wheels are
-# 68 MB, over what travels). Then carry .device and python/lamina/_lamina.abi3.so and run scripts/device_check.sh.
+# in .device/ (git-ignored) the Debian packages of the Vulkan loader and glvnd, and a slim Mitsuba 3 + Dr.Jit for
+# that Python (the variants scalar_rgb, llvm_ad_rgb and cuda_ad_rgb and the plugins the benchmarks' scenes load;
+# the full wheels are 68 MB, over what travels). Then carry .device and python/lamina/_lamina.abi3.so and run scripts/device_check.sh.
 set -euo pipefail
 PYVER=${PYVER:-3.12}
 make develop
 rm -rf .device && mkdir -p .device/gl /tmp/lamina-apt/partial
 apt=(-oAPT::Architecture=amd64 -oAPT::Architectures=amd64 -oDir::State::Lists=/tmp/lamina-apt)
 apt-get "${apt[@]}" update -qq
-# The loader, and the glvnd libraries that NVIDIA's Vulkan driver (libGLX_nvidia) loads: without them wgpu finds no adapter.
+# The loader, and the glvnd libraries that NVIDIA's Vulkan driver (libGLX_nvidia) loads: without them, no adapter.
 (cd .device/gl && apt-get "${apt[@]}" download libvulkan1 libglvnd0 libegl1 libgl1 libglx0 libgles2 libopengl0)
 
 wheels=$(mktemp -d)
