@@ -4,7 +4,8 @@
 # Vulkan loader, no Mitsuba): the extension built here (`make develop`, default features: python/lamina/*.so), and
 # in .device/ (git-ignored) the Debian packages of the Vulkan loader and glvnd, and a slim Mitsuba 3 + Dr.Jit for
 # that Python (the variants scalar_rgb, llvm_ad_rgb and cuda_ad_rgb and the plugins the benchmarks' scenes load;
-# the full wheels are 68 MB, over what travels). Then carry .device and python/lamina/_lamina.abi3.so and run scripts/device_check.sh.
+# the full wheels are 68 MB, over what travels). Then carry .device and python/lamina/_lamina.abi3.so and run
+# scripts/device_check.sh there.
 set -euo pipefail
 PYVER=${PYVER:-3.12}
 make develop
@@ -25,8 +26,8 @@ tag=cpython-${PYVER/./}
 (cd "$site/mitsuba" && rm -rf include mitsuba_stubs ./*.pyi data/ior data/sunsky &&
     find . -maxdepth 1 -name "*_ad_*.so" ! -name "llvm_ad_rgb.$tag*" ! -name "cuda_ad_rgb.$tag*" -delete &&
     find . -maxdepth 1 -name "scalar_*.so" ! -name "scalar_rgb.$tag*" -delete &&
-    find plugins -name "*.so" | grep -Ev '/(roughconductor|srgb|uniform|d65|direct|path|orthographic|hdrfilm|box|regular|independent|sphere|directional|envmap|bitmap|merge)\.so$' |
-    xargs rm -f)
+    keep='roughconductor|srgb|uniform|d65|direct|path|orthographic|hdrfilm|box|regular|independent|sphere'
+    find plugins -name "*.so" | grep -Ev "/($keep|directional|envmap|bitmap|merge)\.so$" | xargs rm -f)
 rm -rf "$site"/*.dist-info "$site/drjit/include"
 tar -cJf .device/site.tar.xz -C "$site" .
 rm -rf "$wheels" "$site"
