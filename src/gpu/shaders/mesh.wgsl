@@ -40,17 +40,14 @@ fn surface(k: u32, b: vec3<f32>) -> Hit {
 // towards the viewer (Mesh::intersect). The pass gives the triangle; its barycentrics come from the ray, as on the
 // CPU: a rasterizer's interpolated ones are only as precise as its hardware (NVIDIA's: 1e-3 off in shading).
 fn camera_surface(px: u32, o: vec3<f32>, d: vec3<f32>) -> Hit {
-    let texel = textureLoad(visibility_target, vec2<u32>(px % rp.width, px / rp.width), 0);
+    var texel = textureLoad(visibility_target, vec2<u32>(px % rp.width, px / rp.width), 0);
+    if texel.w != 0.0 {
+        let k = u32(texel.x);
+        let v = vec3<u32>(triangles[3u * k], triangles[3u * k + 1u], triangles[3u * k + 2u]);
+        let b = ray_triangle(o, d, vertex_vec3(v.x, 0u), vertex_vec3(v.y, 0u), vertex_vec3(v.z, 0u));
+        texel = select(texel, vec4<f32>(texel.x, b.x, b.y, 1.0), b.z > 0.0);
+    }
     var hit = visible(texel);
-    if !hit.found {
-        return hit;
-    }
-    let k = u32(texel.x);
-    let v = vec3<u32>(triangles[3u * k], triangles[3u * k + 1u], triangles[3u * k + 2u]);
-    let b = ray_triangle(o, d, vertex_vec3(v.x, 0u), vertex_vec3(v.y, 0u), vertex_vec3(v.z, 0u));
-    if b.z > 0.0 {
-        hit = surface(k, vec3<f32>(1.0 - b.x - b.y, b.x, b.y));
-    }
     if dot(hit.n, d) > 0.0 {
         hit.n = -hit.n;
     }
