@@ -300,8 +300,9 @@ fn render_oat_mesh(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_w
     if px >= rp.width * rp.height {
         return;
     }
-    let d = camera_ray(px)[1];
-    let hit = camera_surface(px, d);
+    let ray = camera_ray(px);
+    let d = ray[1];
+    let hit = camera_surface(px, ray[0], d);
     var rgb = vec3<f32>(0.0);
     if hit.found && dot(-d, hit.n) > 0.0 {
         rgb = shade(hit, -d);
