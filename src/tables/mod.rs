@@ -76,8 +76,9 @@ pub fn node(x: f64, n: usize) -> (usize, f64) {
 #[inline(always)]
 pub fn node_lanes(x: Floats, n: usize) -> ([u32; LANES], Floats) {
     let s = x.max(Floats::splat(0.0)).min(Floats::splat(1.0)) * (n - 1) as f32;
-    let i: [u32; LANES] = std::array::from_fn(|l| (s.0[l] as u32).min(n as u32 - 2));
-    (i, s - Floats(std::array::from_fn(|l| i[l] as f32)))
+    // Through i32, which converts in lanes (cvttps2dq); s ≥ 0, so the cast loses nothing.
+    let i: [u32; LANES] = std::array::from_fn(|l| (s.0[l] as i32).min(n as i32 - 2) as u32);
+    (i, s - Floats(std::array::from_fn(|l| i[l] as i32 as f32)))
 }
 
 /// Records of W f32 values on a regular grid of D axes, each axis spanning [0, 1] in its own coordinate: the one

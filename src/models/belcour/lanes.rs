@@ -10,8 +10,8 @@ use crate::optics::lanes::{ggx_reflection, Ggx};
 use crate::tables::node_lanes;
 use std::f32::consts::{FRAC_PI_2, FRAC_PI_4, PI};
 
-/// Interpolated values per lane at the most (lobes × record width): a stack with more runs on the float64 path.
-const MAX_VALUES: usize = 32;
+/// Values per lobe record (and channels) at the most: a stack with more runs on the float64 path.
+const MAX_WIDTH: usize = 8;
 
 /// A table in float32 and what the kernel needs besides: built once per stack at `prepare`.
 pub(super) struct TableF32 {
@@ -34,7 +34,7 @@ impl TableF32 {
             let scale = |(rho, r_up): (&f64, &f64)| rho / (std::f64::consts::PI * (1.0 - rho * r_up) * d.eta * d.eta);
             d.albedo.iter().zip(&d.r_up).map(scale).map(|x| x as f32).collect()
         });
-        (t.lobes * t.width <= MAX_VALUES).then(|| TableF32 {
+        (t.width <= MAX_WIDTH && p.channels <= MAX_WIDTH).then(|| TableF32 {
             lobes: t.lobes,
             nodes: t.nodes,
             azimuths: t.azimuths,
@@ -66,8 +66,8 @@ fn corners(t: &TableF32, cos: Floats, x: Floats, y: Floats) -> Corners {
     }
     let n = t.azimuths as u32;
     let v = pseudo_angle(x, y) * (n as f32 / PI);
-    let a: [u32; LANES] = std::array::from_fn(|l| (v.0[l] as u32).min(n - 1));
-    let fa = v - Floats(std::array::from_fn(|l| a[l] as f32));
+    let a: [u32; LANES] = std::array::from_fn(|l| (v.0[l] as i32).clamp(0, n as i32 - 1) as u32);
+    let fa = v - Floats(std::array::from_fn(|l| a[l] as i32 as f32));
     let b = a.map(|a| if a + 1 == n { 0 } else { a + 1 });
     let run = |dk: u32, az: &[u32; LANES]| std::array::from_fn(|l| (k[l] + dk) * n + az[l]);
     Corners {
@@ -77,15 +77,25 @@ fn corners(t: &TableF32, cos: Floats, x: Floats, y: Floats) -> Corners {
     }
 }
 
-/// Σ_q weight_q values[index_q · stride + offset + i] for i < n ≤ N per lane: one table's interpolation, a value at a
-/// time across the lanes (gathers).
+/// Σ_q weight_q values[index_q · stride + offset + i] for i < n ≤ N per lane: one record's interpolation, a value at
+/// a time across the lanes (gathers).
 #[inline(always)]
 fn interpolate<const N: usize>(c: &Corners, values: &[f32], stride: usize, offset: usize, n: usize) -> [Floats; N] {
-    let base: [[usize; LANES]; 4] = std::array::from_fn(|q| c.index[q].map(|k| k as usize * stride + offset));
     let mut v = [Floats::splat(0.0); N];
-    for (i, v) in v[..n].iter_mut().enumerate() {
-        for q in 0..c.count {
-            *v = c.weight[q].mul_add(Floats(std::array::from_fn(|l| values[base[q][l] + i])), *v);
+    for q in 0..c.count {
+        let mut base = [0usize; LANES];
+        for (b, &k) in base.iter_mut().zip(&c.index[q]) {
+            *b = k as usize * stride + offset;
+        }
+        debug_assert!(base.iter().all(|&b| b + n <= values.len()));
+        for (i, v) in v[..n].iter_mut().enumerate() {
+            let mut at = Floats::splat(0.0);
+            for (a, &b) in at.0.iter_mut().zip(&base) {
+                // SAFETY: `corners` clamps its nodes below `nodes − 1` and its azimuths below `azimuths`, so every
+                // record index · stride + offset + i (i < n ≤ the record's width) lies inside `values`.
+                *a = unsafe { *values.get_unchecked(b + i) };
+            }
+            *v = c.weight[q].mul_add(at, *v);
         }
     }
     v
@@ -117,9 +127,9 @@ impl engine::Kernel for Lanes<'_> {
         out.fill(zero);
         let cos_theta = if self.symmetric { symmetric_cosine(wi, wo) } else { wo.z };
         let at = corners(t, cos_theta, wo.x, wo.y);
-        let n = t.lobes * t.width;
-        let values: [Floats; MAX_VALUES] = interpolate(&at, &t.record, n, 0, n);
-        for lobe in values[..n].chunks_exact(t.width) {
+        for k in 0..t.lobes {
+            let values: [Floats; MAX_WIDTH] = interpolate(&at, &t.record, t.lobes * t.width, k * t.width, t.width);
+            let lobe = &values[..t.width];
             // The roughness per lane (the anisotropic tables' roughness matrix eigen-decomposed), the lobe's shape,
             // its energies: a lobe of roughness 0 is a Dirac delta, not part of f.
             let (ax, ay, frame, energy) = if t.azimuths > 1 {
@@ -139,9 +149,9 @@ impl engine::Kernel for Lanes<'_> {
         if !t.diffuse.is_empty() {
             // T↓ at θi and T↑ at θo: the lobes' corners serve for wo unless they were found at |wo·h|.
             let c = self.channels;
-            let down: [Floats; MAX_VALUES] = interpolate(&corners(t, wi.z, wi.x, wi.y), &t.t_down, c, 0, c);
+            let down: [Floats; MAX_WIDTH] = interpolate(&corners(t, wi.z, wi.x, wi.y), &t.t_down, c, 0, c);
             let up_at = if self.symmetric { corners(t, wo.z, wo.x, wo.y) } else { at };
-            let up: [Floats; MAX_VALUES] = interpolate(&up_at, &t.t_up, c, 0, c);
+            let up: [Floats; MAX_WIDTH] = interpolate(&up_at, &t.t_up, c, 0, c);
             let above = wi.z.gt(zero) & wo.z.gt(zero);
             for (ch, o) in out.iter_mut().enumerate() {
                 *o = *o + Floats::and(above, Floats::splat(t.diffuse[ch]) * down[ch] * up[ch]);
