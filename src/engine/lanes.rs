@@ -191,6 +191,9 @@ impl Not for Mask {
 }
 
 impl Mask {
+    /// Every lane set.
+    pub const ALL: Mask = Mask([u32::MAX; LANES]);
+
     /// Whether any lane is set.
     #[inline(always)]
     pub fn any(self) -> bool {

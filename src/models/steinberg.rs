@@ -29,13 +29,16 @@ use super::common::options::{
     MICROFACET_TRANSMISSION, TRANSPORT_FIT,
 };
 use super::common::single_pass::{refracted_up, Passage, SpInterface, SpLayer, Transport, Walk, WalkOptions};
+use super::common::walk_lanes::{self, LanePassage, LaneTransport, LaneWalk};
 use super::corrections::{interreflection, transport_fit};
 use super::{Args, InputSpec, Model, ModelInfo, OptionSpec, Properties, Proposal};
 use crate::bsdf;
+use crate::engine::{self, Floats, Mask, Rows, V3};
 use crate::error::{value_error, Result};
 use crate::optics::distribution::Distribution;
 use crate::stack::Stack;
 use crate::tables::steinberg::{self as lut, steinberg};
+use crate::tables::{lerp_lanes, node_lanes};
 use glam::DVec3;
 
 /// The values of the option `lut`: lamina's tabulated integrals or the article's fitted closed forms.
@@ -67,6 +70,8 @@ pub struct Prepared {
     pub walk: Walk,
     pub opts: Options,
     pub channels: usize,
+    /// The float32 kernel, where the lanes cover the stack (`Lanes::new`).
+    lanes: Option<Lanes>,
 }
 
 pub const INFO: ModelInfo = ModelInfo {
@@ -115,7 +120,64 @@ pub fn prepare(stack: &Stack, opts: &Options) -> Result<Prepared> {
         }
     }
     steinberg(); // generate or load the tables outside the parallel evaluation
-    Ok(Prepared { walk, opts: *opts, channels: stack.channels })
+    let lanes = Lanes::new(&walk, opts, stack.channels);
+    Ok(Prepared { walk, opts: *opts, channels: stack.channels, lanes })
+}
+
+/// Steinberg's walk in float32 lanes (models/common/walk_lanes.rs): each dielectric interface's table sliced at its
+/// fixed α and η to [t, s / sin θ, T] in μ (`Steinberg::slice`), read at two nodes per direction.
+struct Lanes {
+    walk: LaneWalk,
+    /// Per layer: the slice of a dielectric interface, empty for the base.
+    slices: Vec<Vec<f32>>,
+    microfacet_transmission: bool,
+}
+
+impl Lanes {
+    /// The lanes' form of the walk; None for what they do not cover (LaneWalk::new, the fitted LUT, an anisotropic
+    /// dielectric interface, whose tables are read at the projected roughness of each direction).
+    fn new(walk: &Walk, opts: &Options, channels: usize) -> Option<Lanes> {
+        if opts.fitted {
+            return None;
+        }
+        let lane_walk = LaneWalk::new(walk, channels)?;
+        let slice = |layer: &SpLayer| match layer {
+            SpLayer::Dielectric { iface, .. } => {
+                let mf = &iface.mf;
+                let alpha = if mf.is_smooth() { 0.0 } else { mf.alpha_x };
+                (mf.alpha_x == mf.alpha_y).then(|| steinberg().slice(alpha, iface.eta[0]))
+            }
+            _ => Some(vec![]),
+        };
+        let slices = walk.layers.iter().map(slice).collect::<Option<Vec<_>>>()?;
+        Some(Lanes { walk: lane_walk, slices, microfacet_transmission: opts.microfacet_transmission })
+    }
+}
+
+impl LaneTransport for Lanes {
+    /// `Transport::passage` in lanes, from the layer's slice.
+    #[inline(always)]
+    fn passage(&self, layer: usize, wi: V3, wo: V3) -> LanePassage {
+        let slice = &self.slices[layer];
+        let lookup = |w: V3| {
+            let at = node_lanes(w.z, lut::N_MU);
+            let t = if self.microfacet_transmission {
+                lerp_lanes(slice, 3, &at, 2).max(Floats::splat(0.0)).min(Floats::splat(1.0))
+            } else {
+                lerp_lanes(slice, 3, &at, 0)
+            };
+            (t, walk_lanes::refracted_up(w, lerp_lanes(slice, 3, &at, 1)))
+        };
+        let ((t_i, wi), (t_o, wo)) = (lookup(wi), lookup(wo));
+        LanePassage { t_light: t_i, t_view: t_o, t_view_slab: t_o, wi, wo, through: Mask::ALL }
+    }
+}
+
+impl engine::Kernel for Lanes {
+    #[inline(always)]
+    fn eval(&self, wi: V3, wo: V3, out: &mut [Floats]) {
+        self.walk.eval(self, wi, wo, out)
+    }
 }
 
 impl Transport for Prepared {
@@ -160,6 +222,10 @@ impl Prepared {
 impl Model for Prepared {
     fn eval_block(&self, wi: [&[f64]; 3], wo: [&[f64]; 3], _: &super::Inputs, out: &mut [f64]) {
         simd_columns!(Prepared, self, wi, wo, out)
+    }
+
+    fn eval_f32(&self, wi: Rows, wo: Rows, out: &mut [f32]) -> bool {
+        self.lanes.as_ref().is_some_and(|k| engine::eval(k, self.channels, wi, wo, out))
     }
 
     fn proposals(&self, wo: DVec3) -> Vec<(f64, Proposal)> {

@@ -81,6 +81,18 @@ pub fn node_lanes(x: Floats, n: usize) -> ([u32; LANES], Floats) {
     (i, s - Floats(std::array::from_fn(|l| i[l] as i32 as f32)))
 }
 
+/// Value i of the records of `width` values at nodes k and k + 1 per lane, linear between them by the fractions
+/// (`node_lanes`): a 1-D table's lookup in lanes.
+#[inline(always)]
+pub fn lerp_lanes(records: &[f32], width: usize, (k, f): &([u32; LANES], Floats), i: usize) -> Floats {
+    let (mut a, mut b) = (Floats::splat(0.0), Floats::splat(0.0));
+    for ((a, b), &k) in a.0.iter_mut().zip(&mut b.0).zip(k) {
+        let at = k as usize * width + i;
+        (*a, *b) = (records[at], records[at + width]);
+    }
+    f.mul_add(b - a, a)
+}
+
 /// Records of W f32 values on a regular grid of D axes, each axis spanning [0, 1] in its own coordinate: the one
 /// multilinear interpolation behind every table (FGD, Steinberg, Elek).
 pub struct Grid<const D: usize, const W: usize> {

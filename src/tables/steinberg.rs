@@ -209,6 +209,18 @@ impl Steinberg {
         (self.table.data(), &self.fits)
     }
 
+    /// The table at one interface's fixed α and η, [t, 1 − s / sin θ, T] at each node of μ: linear interpolation in
+    /// μ of this slice is the trilinear lookup (`tabulated`, `transmitted`) exactly (issue "Engine": tables sliced at
+    /// `prepare`). 1 − s / sin θ rather than s / sin θ: its float32 rounding is relative to what refraction needs
+    /// (walk_lanes::refracted_up).
+    pub fn slice(&self, alpha: f64, eta: f64) -> Vec<f32> {
+        let at = |i: usize| {
+            let [t, s, _, big_t] = self.table.lookup([i as f64 / (N_MU - 1) as f64, alpha, eta_coord(eta)]);
+            [t as f32, (1.0 - s) as f32, big_t as f32]
+        };
+        (0..N_MU).flat_map(at).collect()
+    }
+
     /// (t, s) from the table (s through s / sin θ).
     pub fn tabulated(&self, mu: f64, alpha: f64, eta: f64) -> (f64, f64) {
         let [t, s, ..] = self.interpolate(mu, alpha, eta);

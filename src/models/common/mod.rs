@@ -1,6 +1,6 @@
 //! What the models share and none of them is: their options (`options`), importance sampling by a mixture of their
-//! lobes (`mixture`), the single-pass layer walk of Steinberg, Weidlich–Wilkie and albedo scaling (`single_pass`),
-//! the evaluation of blocks of rows (`block`), and what a model's GPU half is (`gpu`).
+//! lobes (`mixture`), the single-pass layer walk of Steinberg, Weidlich–Wilkie and albedo scaling (`single_pass`;
+//! in float32 lanes `walk_lanes`), the evaluation of blocks of rows (`block`), and what a model's GPU half is (`gpu`).
 
 pub mod block;
 #[cfg(feature = "gpu")]
@@ -10,3 +10,4 @@ pub mod options;
 pub mod single_pass;
 #[cfg(test)]
 pub mod testing;
+pub mod walk_lanes;

@@ -1,0 +1,178 @@
+//! The single-pass walk (single_pass.rs) in float32 lanes, as structure-of-arrays passes with masks instead of
+//! `continue`: each interface's lobe at the current directions weighted by the attenuation above, then the model's
+//! passage into the slab below (`LanePassage`), Beer–Lambert and the slab's scattering per channel, down to the opaque
+//! base. Every term is masked after its product, so that what a lane outside the walk computes never reaches f.
+//! The same arithmetic as `Walk::eval_group`, for the stacks the lanes cover (`LaneWalk::new`); the others stay
+//! on the float64 path.
+
+use super::single_pass::{shared_eta, SpLayer, Walk};
+use crate::engine::{Floats, Mask, V3};
+use crate::optics::distribution::{Distribution, G2Form};
+use crate::optics::fresnel::FresnelForm;
+use crate::optics::lanes::{conductor, dielectric, ggx_reflection, ConductorIor, Ggx};
+
+/// Channels the lanes carry at the most: more (spectral stacks) run on the float64 path.
+pub const MAX_CHANNELS: usize = 8;
+
+/// What a dielectric interface passes to the slab below, per lane (single_pass::Passage); `through` is clear where
+/// nothing gets through.
+pub struct LanePassage {
+    pub t_light: Floats,
+    pub t_view: Floats,
+    pub t_view_slab: Floats,
+    pub wi: V3,
+    pub wo: V3,
+    pub through: Mask,
+}
+
+/// A single-pass model's passage in lanes (single_pass::Transport::passage): layer `layer` of the walk, whose
+/// channels share one IOR.
+pub trait LaneTransport: Sync {
+    fn passage(&self, layer: usize, wi: V3, wo: V3) -> LanePassage;
+}
+
+/// A layer of the walk as the lanes take it.
+enum LaneLayer {
+    /// The lobe (None: smooth), the relative IOR, the compression 1/η² (or 1), and per channel σt·d and the colour
+    /// of the slab's scattering c/π.
+    Dielectric {
+        ggx: Option<Ggx>,
+        eta: f64,
+        compression: f32,
+        depth: Vec<f32>,
+        colour: Vec<f32>,
+    },
+    Conductor {
+        ggx: Option<Ggx>,
+        ior: Vec<ConductorIor>,
+    },
+    /// ρ · gain / π per channel (a Lambertian base).
+    Diffuse {
+        rho: Vec<f32>,
+    },
+}
+
+/// The walk's layers in lanes.
+pub struct LaneWalk {
+    layers: Vec<LaneLayer>,
+    channels: usize,
+}
+
+impl LaneWalk {
+    /// The lanes' form of `walk` over `channels`; None where they do not cover it: a distribution other than GGX,
+    /// the V-cavity, a dielectric Fresnel other than the exact one, dispersion, Elek's precomputed Fresnel tables,
+    /// a conductor base's inter-reflection term, an Oren–Nayar base, more than MAX_CHANNELS channels.
+    pub fn new(walk: &Walk, channels: usize) -> Option<LaneWalk> {
+        if channels > MAX_CHANNELS || walk.g2 == G2Form::VCavity || !shared_eta(&walk.layers) {
+            return None;
+        }
+        let f32s = |v: &[f64], s: f64| v.iter().map(|&x| (x * s) as f32).collect::<Vec<_>>();
+        let ggx = |layer: &SpLayer| {
+            let iface = layer.interface().expect("an interface");
+            if iface.mf.dist != Distribution::Ggx || !iface.table.is_empty() {
+                return Err(());
+            }
+            Ok(Ggx::new(&iface.mf, walk.g2))
+        };
+        let lane_layer = |layer: &SpLayer| -> Option<LaneLayer> {
+            Some(match layer {
+                SpLayer::Dielectric { iface, thickness, sigma_t, albedo } => {
+                    if walk.fresnel != FresnelForm::Exact {
+                        return None;
+                    }
+                    let eta = iface.eta[0];
+                    LaneLayer::Dielectric {
+                        ggx: ggx(layer).ok()?,
+                        eta,
+                        compression: if walk.eta2 { (1.0 / (eta * eta)) as f32 } else { 1.0 },
+                        depth: f32s(sigma_t, *thickness),
+                        colour: f32s(albedo, std::f64::consts::FRAC_1_PI),
+                    }
+                }
+                SpLayer::Conductor { iface, diffuse } if diffuse.is_empty() => LaneLayer::Conductor {
+                    ggx: ggx(layer).ok()?,
+                    ior: iface
+                        .eta
+                        .iter()
+                        .zip(&iface.kappa)
+                        .map(|(&e, &k)| ConductorIor::new(walk.fresnel, e, k))
+                        .collect(),
+                },
+                SpLayer::Diffuse { albedo, sigma, gain } if *sigma == 0.0 => {
+                    let rho: Vec<f64> = albedo.iter().zip(gain).map(|(a, g)| a * g).collect();
+                    LaneLayer::Diffuse { rho: f32s(&rho, std::f64::consts::FRAC_1_PI) }
+                }
+                _ => return None,
+            })
+        };
+        let layers = walk.layers.iter().map(lane_layer).collect::<Option<Vec<_>>>()?;
+        Some(LaneWalk { layers, channels })
+    }
+
+    /// f of LANES pairs into out[..channels] (single_pass::Walk::eval_group, one group of every channel).
+    #[inline(always)]
+    pub fn eval(&self, model: &impl LaneTransport, wi: V3, wo: V3, out: &mut [Floats]) {
+        let (zero, one) = (Floats::splat(0.0), Floats::splat(1.0));
+        let out = &mut out[..self.channels];
+        out.fill(zero);
+        let mut alive = wi.z.gt(zero) & wo.z.gt(zero);
+        let mut weight = [one; MAX_CHANNELS];
+        let weight = &mut weight[..self.channels];
+        let (mut wi, mut wo) = (wi, wo);
+        for (j, layer) in self.layers.iter().enumerate() {
+            match layer {
+                LaneLayer::Dielectric { ggx, eta, compression, depth, colour } => {
+                    if let Some(g) = ggx {
+                        let (geo, cos_h) = ggx_reflection(g, wi, wo);
+                        let lobe = geo * dielectric(cos_h, *eta);
+                        for (o, w) in out.iter_mut().zip(weight.iter()) {
+                            *o = *o + Floats::and(alive, *w * lobe);
+                        }
+                    }
+                    let p = model.passage(j, wi, wo);
+                    alive = alive & p.through;
+                    let through = p.t_light * *compression;
+                    let path = 1.0 / p.wi.z.max(Floats::splat(1e-9)) + 1.0 / p.wo.z.max(Floats::splat(1e-9));
+                    for ((o, w), (&d, &c)) in out.iter_mut().zip(weight.iter_mut()).zip(depth.iter().zip(colour)) {
+                        let a = if d == 0.0 { one } else { (-(path * d)).exp() };
+                        if c != 0.0 {
+                            *o = *o + Floats::and(alive, *w * through * p.t_view_slab * (1.0 - a) * c);
+                        }
+                        *w = *w * through * p.t_view * a;
+                    }
+                    (wi, wo) = (p.wi, p.wo);
+                }
+                LaneLayer::Conductor { ggx, ior } => {
+                    if let Some(g) = ggx {
+                        let (geo, cos_h) = ggx_reflection(g, wi, wo);
+                        for ((o, w), ior) in out.iter_mut().zip(weight.iter()).zip(ior) {
+                            *o = *o + Floats::and(alive, *w * geo * conductor(cos_h, ior));
+                        }
+                    }
+                }
+                LaneLayer::Diffuse { rho } => {
+                    let above = alive & wi.z.gt(zero) & wo.z.gt(zero);
+                    for ((o, w), &rho) in out.iter_mut().zip(weight.iter()).zip(rho) {
+                        *o = *o + Floats::and(above, *w * rho);
+                    }
+                }
+            }
+        }
+    }
+}
+
+/// Direction `w` (unit, per lane) refracted into a slab and flipped to point up: the same azimuth and sin θt =
+/// min(k sin θ, 1) (single_pass::refracted_up), k given as d = 1 − k. cos θt as √(k² cos²θ + d (2 − d)): this does
+/// not cancel at grazing incidence as 1 − sin²θt would in float32, and d keeps the digits that k loses near 1 (an
+/// interface nearly index-matched, where cos θt ≈ cos θ is small).
+#[inline(always)]
+pub fn refracted_up(w: V3, d: Floats) -> V3 {
+    let one = Floats::splat(1.0);
+    let k = one - d;
+    let r = w.x.mul_add(w.x, w.y * w.y).sqrt();
+    let clamped = (k * r).ge(one);
+    let scale = Floats::select(clamped, 1.0 / r, k);
+    let kz = k * w.z;
+    let cos_t = Floats::and(!clamped, kz.mul_add(kz, d * (2.0 - d)).max(Floats::splat(0.0)).sqrt());
+    V3 { x: w.x * scale, y: w.y * scale, z: cos_t }
+}
