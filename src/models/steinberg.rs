@@ -154,21 +154,26 @@ impl Lanes {
     }
 }
 
+impl Lanes {
+    /// t (or T) at w's cosine from a layer's slice, and w refracted along the mean direction.
+    #[inline(always)]
+    fn lookup(&self, slice: &[f32], w: V3) -> (Floats, V3) {
+        let at = node_lanes(w.z, lut::N_MU);
+        let t = if self.microfacet_transmission {
+            lerp_lanes(slice, 3, &at, 2).max(Floats::splat(0.0)).min(Floats::splat(1.0))
+        } else {
+            lerp_lanes(slice, 3, &at, 0)
+        };
+        (t, walk_lanes::refracted_up(w, lerp_lanes(slice, 3, &at, 1)))
+    }
+}
+
 impl LaneTransport for Lanes {
     /// `Transport::passage` in lanes, from the layer's slice.
     #[inline(always)]
     fn passage(&self, layer: usize, wi: V3, wo: V3) -> LanePassage {
         let slice = &self.slices[layer];
-        let lookup = |w: V3| {
-            let at = node_lanes(w.z, lut::N_MU);
-            let t = if self.microfacet_transmission {
-                lerp_lanes(slice, 3, &at, 2).max(Floats::splat(0.0)).min(Floats::splat(1.0))
-            } else {
-                lerp_lanes(slice, 3, &at, 0)
-            };
-            (t, walk_lanes::refracted_up(w, lerp_lanes(slice, 3, &at, 1)))
-        };
-        let ((t_i, wi), (t_o, wo)) = (lookup(wi), lookup(wo));
+        let ((t_i, wi), (t_o, wo)) = (self.lookup(slice, wi), self.lookup(slice, wo));
         LanePassage { t_light: t_i, t_view: t_o, t_view_slab: t_o, wi, wo, through: Mask::ALL }
     }
 }
