@@ -37,11 +37,14 @@ use super::common::options::{
     INTERREFLECTION, TRANSPORT_FIT,
 };
 use super::common::single_pass::{refracted_up, Passage, SpInterface, SpLayer, Transport, Walk, WalkOptions};
+use super::common::walk_lanes::{self, LanePassage, LaneTransport, LaneWalk};
 use super::corrections::{interreflection, transport_fit};
 use super::{Args, InputSpec, Inputs, Model, ModelInfo, OptionSpec, Properties, Proposal};
 use crate::bsdf;
+use crate::engine::{self, Floats, Rows, V3};
 use crate::error::{value_error, Result};
-use crate::optics::distribution::Distribution;
+use crate::optics::distribution::{Distribution, G2Form};
+use crate::optics::lanes::{self, dielectric_transmittance};
 use crate::optics::sin_theta;
 use crate::stack::{Layer, Stack};
 use crate::tables::elek::beckmann_table;
@@ -145,6 +148,8 @@ pub struct Prepared {
     pub channels: usize,
     /// The patina form of the stack (its top layer over the rest), when the top layer is a dielectric.
     patina: Option<Patina>,
+    /// The float32 kernel, where the lanes cover the stack (`Lanes::new`).
+    lanes: Option<Lanes>,
 }
 
 pub fn prepare(stack: &Stack, opts: &Options) -> Result<Prepared> {
@@ -162,7 +167,63 @@ pub fn prepare(stack: &Stack, opts: &Options) -> Result<Prepared> {
         [Layer::Dielectric { .. }, base] if !precomputed => Some(Patina::new(base, stack, opts)?),
         _ => None,
     };
-    Ok(Prepared { walk, precomputed, channels: stack.channels, patina })
+    let lanes = if precomputed { None } else { Lanes::new(&walk, stack.channels) };
+    Ok(Prepared { walk, precomputed, channels: stack.channels, patina, lanes })
+}
+
+/// Weidlich–Wilkie's walk in float32 lanes (models/common/walk_lanes.rs), with V-cavity lobes (the published form)
+/// of either distribution: the passages' Snell refraction, T₁₂ and (1 − G) + T₂₁ G in lanes.
+struct Lanes {
+    walk: LaneWalk,
+    /// Per layer: a dielectric interface's IOR η, 1 − 1/η (walk_lanes::refracted_up) and whether it is rough.
+    interfaces: Vec<(f64, f32, bool)>,
+}
+
+impl Lanes {
+    /// The lanes' form of the walk; None for what they do not cover (LaneWalk::new; a rough dielectric interface with
+    /// a Smith G2, whose G the passage would need in lanes; Elek's precomputed tables).
+    fn new(walk: &Walk, channels: usize) -> Option<Lanes> {
+        let lane_walk = LaneWalk::new(walk, channels)?;
+        let interface = |layer: &SpLayer| match layer {
+            SpLayer::Dielectric { iface, .. } if iface.mf.is_smooth() || walk.g2 == G2Form::VCavity => {
+                let eta = iface.eta[0];
+                Some((eta, (1.0 - 1.0 / eta) as f32, !iface.mf.is_smooth()))
+            }
+            SpLayer::Dielectric { .. } => None,
+            _ => Some((1.0, 0.0, false)),
+        };
+        let interfaces = walk.layers.iter().map(interface).collect::<Option<Vec<_>>>()?;
+        Some(Lanes { walk: lane_walk, interfaces })
+    }
+}
+
+impl LaneTransport for Lanes {
+    /// `Transport::passage` in lanes.
+    #[inline(always)]
+    fn passage(&self, layer: usize, wi: V3, wo: V3) -> LanePassage {
+        let &(eta, d, rough) = &self.interfaces[layer];
+        let sin = |w: V3| w.x.mul_add(w.x, w.y * w.y).sqrt();
+        let limit = Floats::splat(eta as f32);
+        let through = sin(wi).lt(limit) & sin(wo).lt(limit);
+        let (t12, t21) = (dielectric_transmittance(wi.z, eta), dielectric_transmittance(wo.z, eta));
+        let g = if rough { lanes::v_cavity(wi, wo) } else { Floats::splat(1.0) };
+        let d = Floats::splat(d);
+        LanePassage {
+            t_light: t12,
+            t_view: (1.0 - g) + t21 * g,
+            t_view_slab: t21,
+            wi: walk_lanes::refracted_up(wi, d),
+            wo: walk_lanes::refracted_up(wo, d),
+            through,
+        }
+    }
+}
+
+impl engine::Kernel for Lanes {
+    #[inline(always)]
+    fn eval(&self, wi: V3, wo: V3, out: &mut [Floats]) {
+        self.walk.eval(self, wi, wo, out)
+    }
 }
 
 impl Transport for Prepared {
@@ -230,6 +291,10 @@ impl Model for Prepared {
             }
             _ => self.walk.eval_block(self, &self.walk.layers, wi, wo, normal, &[1.0], out),
         }
+    }
+
+    fn eval_f32(&self, wi: Rows, wo: Rows, out: &mut [f32]) -> bool {
+        self.lanes.as_ref().is_some_and(|k| engine::eval(k, self.channels, wi, wo, out))
     }
 
     fn check_inputs(&self, given: &[bool]) -> Result<()> {

@@ -187,6 +187,116 @@ pub fn ggx_reflection(g: &Ggx, wi: V3, wo: V3) -> (Floats, Floats) {
     (Floats::and(above, geo), cos_h)
 }
 
+/// Dielectric transmittance 1 − F at cos θ ≥ 0 (fresnel::dielectric_transmittance), without cancellation at grazing
+/// incidence: 2η cos θ cos θt (1 / (cos θ + η cos θt)² + 1 / (η cos θ + cos θt)²); 0 under total internal reflection.
+#[inline(always)]
+pub fn dielectric_transmittance(cos: Floats, eta: f64) -> Floats {
+    let zero = Floats::splat(0.0);
+    let cos = cos.max(zero).min(Floats::splat(1.0));
+    let cos2_t = cos.mul_add(cos, Floats::splat((eta * eta - 1.0) as f32)) * ((1.0 / (eta * eta)) as f32);
+    let cos_t = cos2_t.max(zero).sqrt();
+    let e = eta as f32;
+    let (s, p) = (cos_t.mul_add(Floats::splat(e), cos), cos.mul_add(Floats::splat(e), cos_t));
+    let t = (2.0 * e) * cos * cos_t * (1.0 / (s * s) + 1.0 / (p * p));
+    Floats::and(cos2_t.gt(zero), t)
+}
+
+/// A microfacet interface with Torrance–Sparrow's V-cavity masking-shadowing as the lanes take it, of GGX or
+/// Beckmann normals (Weidlich–Wilkie's lobes).
+#[derive(Clone, Copy, Debug)]
+pub struct VCavity {
+    beckmann: bool,
+    /// 1 / αx², 1 / αy², 1 / (π αx αy).
+    inv_ax2: f32,
+    inv_ay2: f32,
+    norm: f32,
+    frame: Option<(Floats, Floats)>,
+}
+
+impl VCavity {
+    /// The lanes' form of `mf`; None for a smooth interface.
+    pub fn new(mf: &Microfacet) -> Option<VCavity> {
+        if mf.is_smooth() {
+            return None;
+        }
+        let (ax, ay) = (mf.alpha_x, mf.alpha_y);
+        let (c, s) = mf.frame();
+        Some(VCavity {
+            beckmann: mf.dist == Distribution::Beckmann,
+            inv_ax2: (1.0 / (ax * ax)) as f32,
+            inv_ay2: (1.0 / (ay * ay)) as f32,
+            norm: (std::f64::consts::FRAC_1_PI / (ax * ay)) as f32,
+            frame: (s != 0.0).then_some((Floats::splat(c as f32), Floats::splat(s as f32))),
+        })
+    }
+}
+
+/// V-cavity masking-shadowing of a reflected pair above the surface (distribution::v_cavity at h = wi + wo, where
+/// wi·h = wo·h = |h|²/2): min(1, 4 hz min(cos θi, cos θo) / |h|²); 0 unless both are above.
+#[inline(always)]
+pub fn v_cavity(wi: V3, wo: V3) -> Floats {
+    let zero = Floats::splat(0.0);
+    let h = wi.plus(wo);
+    let g = (4.0 * h.z * wi.z.min(wo.z) / h.dot(h)).min(Floats::splat(1.0));
+    Floats::and(wi.z.gt(zero) & wo.z.gt(zero), g)
+}
+
+/// D(h) G2 / (4 cos θi cos θo) with the V-cavity G2, and wi·h (bsdf::reflection_geometry); 0 unless both directions
+/// are above. D from h = wi + wo unnormalised: GGX |h|⁴ / (π αx αy s²), s = hx²/αx² + hy²/αy² + hz² (Walter et al.
+/// 2007 eq. 33); Beckmann exp(−(hx²/αx² + hy²/αy²) / hz²) |h|⁴ / (π αx αy hz⁴) (eq. 25).
+#[inline(always)]
+pub fn v_cavity_reflection(v: &VCavity, wi: V3, wo: V3) -> (Floats, Floats) {
+    let h = match v.frame {
+        Some((c, s)) => wi.plus(wo).rotate(c, s),
+        None => wi.plus(wo),
+    };
+    let h2 = h.dot(h);
+    let slope = (h.x * h.x).mul_add(Floats::splat(v.inv_ax2), h.y * h.y * v.inv_ay2);
+    let z2 = h.z * h.z;
+    let d = if v.beckmann {
+        // Where the exponential underflows, D is 0 (not 0 · ∞ for hz → 0).
+        let e = (-(slope / z2)).exp();
+        Floats::and(e.gt(Floats::splat(0.0)), e * (h2 * h2 * v.norm / (z2 * z2)))
+    } else {
+        let s = slope + z2;
+        h2 * h2 * v.norm / (s * s)
+    };
+    // G2 / (4 cos θi cos θo) = min(1 / (4 cos θi cos θo), hz / (|h|² max(cos θi, cos θo))): the product of the
+    // cosines, which underflows for a grazing direction, only where it is the smaller term.
+    let masking = (1.0 / (4.0 * wi.z * wo.z)).min(h.z / (h2 * wi.z.max(wo.z)));
+    let above = wi.z.gt(Floats::splat(0.0)) & wo.z.gt(Floats::splat(0.0));
+    (Floats::and(above, d * masking), 0.5 * h2.sqrt())
+}
+
+/// A rough interface's reflection lobe in lanes: GGX with a Smith G2 or either distribution with the V-cavity.
+/// (One per layer, built at `prepare` and read in the row loop: unboxed, whatever the variants' sizes.)
+#[allow(clippy::large_enum_variant)]
+#[derive(Clone, Copy, Debug)]
+pub enum Lobe {
+    Smith(Ggx),
+    VCavity(VCavity),
+}
+
+impl Lobe {
+    /// The lobe of `mf` with masking-shadowing `g2`: None for a smooth interface or what the lanes do not cover
+    /// (Beckmann with a Smith G2).
+    pub fn new(mf: &Microfacet, g2: G2Form) -> Option<Lobe> {
+        match g2 {
+            G2Form::VCavity => VCavity::new(mf).map(Lobe::VCavity),
+            _ => Ggx::new(mf, g2).map(Lobe::Smith),
+        }
+    }
+
+    /// D G2 / (4 cos θi cos θo) and wi·h (`ggx_reflection`, `v_cavity_reflection`).
+    #[inline(always)]
+    pub fn reflection(&self, wi: V3, wo: V3) -> (Floats, Floats) {
+        match self {
+            Lobe::Smith(g) => ggx_reflection(g, wi, wo),
+            Lobe::VCavity(v) => v_cavity_reflection(v, wi, wo),
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -289,6 +399,61 @@ mod tests {
                         // The float64 form wi·h/|h| cancels (1 + wi·wo) for nearly opposite grazing directions,
                         // whose length differs from 1 by float32's rounding: up to 1.2e-5 there.
                         assert!((cos_h.0[i] as f64 - cw).abs() <= 2e-5, "cos h: {} vs {cw}", cos_h.0[i]);
+                    }
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn dielectric_transmittance_matches_its_float64_twin() {
+        // Relative to T over cos θ in (0, 1], grazing included (where 1 − F in float32 would lose T). Same critical
+        // angle allowance as the reflectance. Measured: 1.3e-6 at most.
+        for eta in [1.5, 1.33, 2.4, 1.0 / 1.5, 1.0001, 1.0 + 1e-9] {
+            for i in 0..2000 {
+                let cos = (i as f32 + 0.5) / 2000.0;
+                let got = dielectric_transmittance(Floats::splat(cos), eta).0[0] as f64;
+                let want = fresnel::dielectric_transmittance(cos as f64, eta);
+                let critical = (cos as f64).powi(2) - (1.0 - eta * eta);
+                let tol = 4e-6 * want + 1e-9 + 1e-7 / critical.abs().sqrt();
+                assert!((got - want).abs() <= tol, "η = {eta}, cos = {cos}: {got} vs {want}");
+            }
+        }
+    }
+
+    #[test]
+    fn v_cavity_reflection_matches_its_float64_twin() {
+        // As ggx_reflection's test, for V-cavity lobes of Beckmann and GGX normals.
+        let (wis, wos) = (directions(4000, 3), directions(4000, 4));
+        for dist in [Distribution::Beckmann, Distribution::Ggx] {
+            for (ax, ay, angle) in [(0.05, 0.05, 0.0), (0.3, 0.3, 0.0), (0.1, 0.6, 0.7), (1.0, 1.0, 0.0)] {
+                let mf = Microfacet::new(dist, ax, ay, angle);
+                let v = VCavity::new(&mf).unwrap();
+                let want: Vec<f64> = wis
+                    .iter()
+                    .zip(&wos)
+                    .map(|(&wi, &wo)| bsdf::reflection_geometry(&mf, G2Form::VCavity, wi, wo).map_or(0.0, |g| g.0))
+                    .collect();
+                let peak = want.iter().fold(0.0, |a: f64, &b| a.max(b));
+                for (k, (wi8, wo8)) in wis.chunks(8).zip(wos.chunks(8)).enumerate() {
+                    let (geo, _) = v_cavity_reflection(&v, lanes(wi8), lanes(wo8));
+                    for i in 0..wi8.len() {
+                        let gw = want[8 * k + i];
+                        // wi·h = |h|²/2 holds for unit directions; these are unit to float32's rounding, |w|² − 1 ≤
+                        // 1.2e-7, which the nearly opposite pairs' small |h|² magnifies (float64's twin takes them
+                        // as given); and a sharp lobe turns the rounding of h into 4e-7 / (α |h|) of D (as
+                        // tests/test_engine.py's conditioning).
+                        let h2 = (wi8[i] + wo8[i]).length_squared();
+                        let rel = 1e-5 + 1.2e-7 / h2 + 4e-7 / (ax.min(ay) * h2.sqrt());
+                        let tol = (rel * gw).max(if gw >= 1e-3 * peak { 0.0 } else { 1e-8 * peak });
+                        assert!(
+                            (geo.0[i] as f64 - gw).abs() <= tol,
+                            "{dist:?} α = ({ax}, {ay}): {} vs {gw} at {} {} (h {})",
+                            geo.0[i],
+                            wi8[i],
+                            wo8[i],
+                            (wi8[i] + wo8[i]).length()
+                        );
                     }
                 }
             }

@@ -7,9 +7,8 @@
 
 use super::single_pass::{shared_eta, SpLayer, Walk};
 use crate::engine::{Floats, Mask, V3};
-use crate::optics::distribution::{Distribution, G2Form};
 use crate::optics::fresnel::FresnelForm;
-use crate::optics::lanes::{conductor, dielectric, ggx_reflection, ConductorIor, Ggx};
+use crate::optics::lanes::{conductor, dielectric, ConductorIor, Lobe};
 
 /// Channels the lanes carry at the most: more (spectral stacks) run on the float64 path.
 pub const MAX_CHANNELS: usize = 8;
@@ -36,14 +35,14 @@ enum LaneLayer {
     /// The lobe (None: smooth), the relative IOR, the compression 1/η² (or 1), and per channel σt·d and the colour
     /// of the slab's scattering c/π.
     Dielectric {
-        ggx: Option<Ggx>,
+        lobe: Option<Lobe>,
         eta: f64,
         compression: f32,
         depth: Vec<f32>,
         colour: Vec<f32>,
     },
     Conductor {
-        ggx: Option<Ggx>,
+        lobe: Option<Lobe>,
         ior: Vec<ConductorIor>,
     },
     /// ρ · gain / π per channel (a Lambertian base).
@@ -59,20 +58,19 @@ pub struct LaneWalk {
 }
 
 impl LaneWalk {
-    /// The lanes' form of `walk` over `channels`; None where they do not cover it: a distribution other than GGX,
-    /// the V-cavity, a dielectric Fresnel other than the exact one, dispersion, Elek's precomputed Fresnel tables,
+    /// The lanes' form of `walk` over `channels`; None where they do not cover it: Beckmann with a Smith G2 (`Lobe`),
+    /// a dielectric Fresnel other than the exact one, dispersion, Elek's precomputed Fresnel tables,
     /// a conductor base's inter-reflection term, an Oren–Nayar base, more than MAX_CHANNELS channels.
     pub fn new(walk: &Walk, channels: usize) -> Option<LaneWalk> {
-        if channels > MAX_CHANNELS || walk.g2 == G2Form::VCavity || !shared_eta(&walk.layers) {
+        if channels > MAX_CHANNELS || !shared_eta(&walk.layers) {
             return None;
         }
         let f32s = |v: &[f64], s: f64| v.iter().map(|&x| (x * s) as f32).collect::<Vec<_>>();
-        let ggx = |layer: &SpLayer| {
+        // Some(None): a smooth interface, whose reflection is a Dirac delta outside f.
+        let lobe = |layer: &SpLayer| {
             let iface = layer.interface().expect("an interface");
-            if iface.mf.dist != Distribution::Ggx || !iface.table.is_empty() {
-                return Err(());
-            }
-            Ok(Ggx::new(&iface.mf, walk.g2))
+            let lobe = Lobe::new(&iface.mf, walk.g2);
+            (iface.table.is_empty() && (lobe.is_some() || iface.mf.is_smooth())).then_some(lobe)
         };
         let lane_layer = |layer: &SpLayer| -> Option<LaneLayer> {
             Some(match layer {
@@ -82,7 +80,7 @@ impl LaneWalk {
                     }
                     let eta = iface.eta[0];
                     LaneLayer::Dielectric {
-                        ggx: ggx(layer).ok()?,
+                        lobe: lobe(layer)?,
                         eta,
                         compression: if walk.eta2 { (1.0 / (eta * eta)) as f32 } else { 1.0 },
                         depth: f32s(sigma_t, *thickness),
@@ -90,7 +88,7 @@ impl LaneWalk {
                     }
                 }
                 SpLayer::Conductor { iface, diffuse } if diffuse.is_empty() => LaneLayer::Conductor {
-                    ggx: ggx(layer).ok()?,
+                    lobe: lobe(layer)?,
                     ior: iface
                         .eta
                         .iter()
@@ -121,9 +119,9 @@ impl LaneWalk {
         let (mut wi, mut wo) = (wi, wo);
         for (j, layer) in self.layers.iter().enumerate() {
             match layer {
-                LaneLayer::Dielectric { ggx, eta, compression, depth, colour } => {
-                    if let Some(g) = ggx {
-                        let (geo, cos_h) = ggx_reflection(g, wi, wo);
+                LaneLayer::Dielectric { lobe, eta, compression, depth, colour } => {
+                    if let Some(lobe) = lobe {
+                        let (geo, cos_h) = lobe.reflection(wi, wo);
                         let lobe = geo * dielectric(cos_h, *eta);
                         for (o, w) in out.iter_mut().zip(weight.iter()) {
                             *o = *o + Floats::and(alive, *w * lobe);
@@ -142,9 +140,9 @@ impl LaneWalk {
                     }
                     (wi, wo) = (p.wi, p.wo);
                 }
-                LaneLayer::Conductor { ggx, ior } => {
-                    if let Some(g) = ggx {
-                        let (geo, cos_h) = ggx_reflection(g, wi, wo);
+                LaneLayer::Conductor { lobe, ior } => {
+                    if let Some(lobe) = lobe {
+                        let (geo, cos_h) = lobe.reflection(wi, wo);
                         for ((o, w), ior) in out.iter_mut().zip(weight.iter()).zip(ior) {
                             *o = *o + Floats::and(alive, *w * geo * conductor(cos_h, ior));
                         }
