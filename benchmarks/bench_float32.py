@@ -32,20 +32,23 @@ def worst(stack, model, wi, wo, **options) -> tuple[float, float]:
     return rel, small
 
 
+#: The layered models with a lane kernel, each run on the whole stack.
+LAYERED = ("tabulated", "belcour", "steinberg", "weidlich_wilkie")
+
+
 def main() -> None:
     rng = np.random.default_rng(1)
     wi, wo = (hemisphere(rng, 100_000, min_cos=0.02).astype(np.float32) for _ in range(2))
     rows = []
-    for name in SUITE:
-        if name != "anisotropic-coat-metal":  # tabulated refuses anisotropic stacks
-            rows.append((f"suite: {name}", "tabulated", *worst(suite(name), "tabulated", wi, wo)))
-    for name in SUITE:
-        rows.append((f"suite: {name}", "belcour", *worst(suite(name), "belcour", wi, wo)))
+    for model in LAYERED:
+        for name in SUITE:
+            if model != "tabulated" or name != "anisotropic-coat-metal":  # tabulated refuses anisotropic stacks
+                rows.append((f"suite: {name}", model, *worst(suite(name), model, wi, wo)))
     for roughness in [1.0, 0.3, 0.1, (0.1, 0.5), 0.05, 0.01, 1e-3]:
         stack = lamina.Stack([metal("Au", roughness, angle=0.3)])
         rows.append((f"gold, roughness {roughness}, rotated frame", "microfacet", *worst(stack, "microfacet", wi, wo)))
     pop = [s for _, s in population(20, seed=2)]
-    for model in ("tabulated", "belcour", "microfacet"):
+    for model in (*LAYERED, "microfacet"):
         errs = []
         for stack in pop:
             if model == "microfacet":
@@ -56,12 +59,12 @@ def main() -> None:
                 continue  # the model cannot represent the stack
         rows.append((f"held-out population (seed 2), {len(errs)} stacks", model, *np.max(errs, axis=0)))
     frng = np.random.default_rng(5)
-    errs = {"microfacet": [], "tabulated": [], "belcour": []}
+    errs = {model: [] for model in ("microfacet", *LAYERED)}
     for _ in range(60):
         stack = fuzz.random_stack(frng)
         fwi, fwo = fuzz.directions(frng, 4000, np.float32)
         single = lamina.Stack(stack.layers[-1:], ext_ior=stack.ext_ior)
-        for model, s in [("microfacet", single), ("tabulated", stack), ("belcour", stack)]:
+        for model, s in [("microfacet", single), *((m, stack) for m in LAYERED)]:
             try:
                 errs[model].append(worst(s, model, fwi, fwo))
             except ValueError:
@@ -76,7 +79,8 @@ def main() -> None:
         "tests/test_engine.py; here the worst cases.",
         "",
         "float32 directions are evaluated in float32 lanes by the models with a lane kernel (`microfacet`'s rough GGX "
-        "conductor, `tabulated`, `belcour`'s interpolated table); the same"
+        "conductor, `tabulated`, `belcour`'s interpolated table, the single-pass walks of `steinberg` and "
+        "`weidlich_wilkie`; the anisotropic coat's dielectric under `steinberg` stays on the float64 path); the same"
         " float32 directions as float64 take the float64 path. Relative error where "
         "f ≥ 1e-3 of the stack's peak, absolute error / peak elsewhere; 100,000 random pairs (20,000 for the "
         "population; 4,000 of the fuzz's extreme pairs per fuzz stack).",
@@ -92,7 +96,9 @@ def main() -> None:
         + ". What limits those is a float32 "
         "direction's own rounding (±3e-8 per component): a GGX lobe's half vector wi + wo magnifies it by "
         "1/|wi + wo| and f by 1/α, so sharp lobes and nearly opposite grazing pairs show errors up to about "
-        "4e-7 / (α |wi + wo|) (the bound tests/test_engine.py asserts there), and a table's float32 coordinates move "
+        "4e-7 / (α |wi + wo|) (the bound tests/test_engine.py asserts there; a Beckmann lobe's exponential tail, "
+        "`weidlich_wilkie`'s, multiplies it by about 2 tan²θh / α² where f is far below its peak), and a table's "
+        "float32 coordinates move "
         "f where the table is steep (grazing). The float64 path, which normalises exactly, is the reference. The "
         "fuzz's extremes reach roughness 1e-4 (MIN_ALPHA) and "
         "singular mirror pairs at denormal zeniths.",

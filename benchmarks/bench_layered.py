@@ -57,6 +57,10 @@ def main() -> None:
     s = np.sqrt(1 - z * z)
     wi, wo = (np.stack([s[i] * np.cos(p[i]), s[i] * np.sin(p[i]), z[i]], -1).astype(np.float32) for i in (0, 1))
 
+    # The 2-layer stack before Mitsuba is imported: once Dr.Jit has run, its worker threads share the two cores
+    # (bench_conductor's "before any Mitsuba call" row).
+    two = lamina.materials.suite(STACKS["2 layers"])
+    alone = measure({m: lambda m=m: two.eval(wi, wo, m) for m in ("belcour", "steinberg", "weidlich_wilkie")})
     fns = {"Mitsuba 3 llvm_ad_rgb roughconductor (one lobe)": mitsuba_eval(mitsuba_conductor(), wi, wo)}
     prepare = {}
     for stack_label, name in STACKS.items():
@@ -99,6 +103,11 @@ def main() -> None:
     cost = "; ".join(f"{k}: {aniso[k] / iso[k]:.2f}x" for k in aniso if k in iso)
     q = np.percentile(paired_ratios(fns["belcour | 2 layers"], fns["belcour | 2 layers, anisotropic"]), [25, 50, 75])
     lines += [
+        "",
+        "The same 2-layer calls measured first in this process, before any Mitsuba call (as the conductor section's "
+        "first row): "
+        + ", ".join(f"{m} {N / t:,.0f} evaluations/s ({mitsuba_t / t:.2f}x)" for m, (t, _) in alone.items())
+        + ".",
         "",
         f"Anisotropic / isotropic 2-layer cost (medians above): {cost}.",
         "",

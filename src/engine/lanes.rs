@@ -166,12 +166,17 @@ impl Floats {
         let p = r.poly(&TAYLOR);
         // 2^n as 2^(n/2 rounded down) · 2^(the rest): each factor a normal float32 for n in [-150, 128].
         let half = map(|i| (n.0[i] * 0.5).floor());
-        let pow2 = |k: Floats| map(|i| f32::from_bits((((k.0[i] as i32) + 127).clamp(0, 255) as u32) << 23));
         let y = p * pow2(half) * pow2(n - half);
         let y = Floats::select(self.lt(Floats::splat(-104.0)), Floats::splat(0.0), y);
         Floats::select(self.gt(Floats::splat(89.0)), Floats::splat(f32::INFINITY), y)
             + map(|i| if self.0[i].is_nan() { f32::NAN } else { 0.0 })
     }
+}
+
+/// 2^k per lane for integral k (exp's scaling), through the exponent bits.
+#[inline(always)]
+fn pow2(k: Floats) -> Floats {
+    map(|i| f32::from_bits((((k.0[i] as i32) + 127).clamp(0, 255) as u32) << 23))
 }
 
 impl BitAnd for Mask {

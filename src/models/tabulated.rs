@@ -226,6 +226,13 @@ struct Lanes<'a> {
     top: Option<Ggx>,
 }
 
+/// `zenith` in lanes: √(1 − cos θ) as √((x² + y²) / (1 + cos θ)), from r2 = x² + y² (no cancellation near the
+/// normal).
+#[inline(always)]
+fn zenith_lanes(r2: Floats, z: Floats) -> Floats {
+    (r2 / (1.0 + z.max(Floats::splat(0.0)))).sqrt()
+}
+
 impl engine::Kernel for Lanes<'_> {
     #[inline(always)]
     fn eval(&self, wi: V3, wo: V3, out: &mut [Floats]) {
@@ -242,13 +249,12 @@ impl engine::Kernel for Lanes<'_> {
             None => out.fill(zero),
         }
         // The coordinates in forms without cancellation, as float32 needs them near their ends: the zenith
-        // coordinate √(1 − cos θ) = √((x² + y²) / (1 + cos θ)) (`zenith`), and the azimuth between the travel
+        // coordinate √(1 − cos θ) = √((x² + y²) / (1 + cos θ)) (`zenith_lanes`), and the azimuth between the travel
         // directions y = sin(φ/2) = √((1 − cos φ)/2) with cos φ = −cos(φi − φo), as |âi + âo| / 2 for the unit
         // tangent components â (0 where either direction is the normal).
         let (ri, ro) = (wi.x.mul_add(wi.x, wi.y * wi.y), wo.x.mul_add(wo.x, wo.y * wo.y));
-        let zenith = |r2: Floats, z: Floats| (r2 / (1.0 + z.max(zero))).sqrt();
-        let (i, fi) = node_lanes(zenith(ri, wi.z), NODES);
-        let (o, fo) = node_lanes(zenith(ro, wo.z), NODES);
+        let (i, fi) = node_lanes(zenith_lanes(ri, wi.z), NODES);
+        let (o, fo) = node_lanes(zenith_lanes(ro, wo.z), NODES);
         let both = ri.gt(zero) & ro.gt(zero);
         let (si, so) = (1.0 / ri.sqrt(), 1.0 / ro.sqrt());
         let (ax, ay) = (wi.x.mul_add(si, wo.x * so), wi.y.mul_add(si, wo.y * so));

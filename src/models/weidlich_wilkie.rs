@@ -202,9 +202,8 @@ impl LaneTransport for Lanes {
     #[inline(always)]
     fn passage(&self, layer: usize, wi: V3, wo: V3) -> LanePassage {
         let &(eta, d, rough) = &self.interfaces[layer];
-        let sin = |w: V3| w.x.mul_add(w.x, w.y * w.y).sqrt();
         let limit = Floats::splat(eta as f32);
-        let through = sin(wi).lt(limit) & sin(wo).lt(limit);
+        let through = lanes::sin_theta(wi).lt(limit) & lanes::sin_theta(wo).lt(limit);
         let (t12, t21) = (dielectric_transmittance(wi.z, eta), dielectric_transmittance(wo.z, eta));
         let g = if rough { lanes::v_cavity(wi, wo) } else { Floats::splat(1.0) };
         let d = Floats::splat(d);

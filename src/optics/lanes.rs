@@ -161,6 +161,21 @@ impl Ggx {
     }
 }
 
+/// σ = √(cos² θ + αx² x² + αy² y²) of a direction in the interface's frame: cos θ (1 + 2Λ) for GGX (Heitz 2014
+/// eq. 72). (Functions rather than closures in the lanes' hot paths: a closure may be compiled outside the row
+/// loop's instruction set.)
+#[inline(always)]
+fn smith_sigma(g: &Ggx, w: V3) -> Floats {
+    (w.x * w.x).mul_add(g.ax2, (w.y * w.y).mul_add(g.ay2, w.z * w.z)).sqrt()
+}
+
+/// sin θ of a unit direction from its tangent components, √(x² + y²) (optics::sin_theta): no cancellation near the
+/// normal, as 1 − cos²θ would have in float32.
+#[inline(always)]
+pub fn sin_theta(w: V3) -> Floats {
+    w.x.mul_add(w.x, w.y * w.y).sqrt()
+}
+
 /// Microfacet reflection without the Fresnel factor, D(h) G2 / (4 cos θi cos θo), and the cosine wi·h its Fresnel
 /// factor takes (bsdf::reflection_geometry), for GGX with a Smith G2; 0 unless both directions are above the
 /// surface. D from h = wi + wo unnormalised: D = |h|⁴ / (π αx αy s²), s = hx²/αx² + hy²/αy² + hz² (Walter et al.
@@ -180,8 +195,7 @@ pub fn ggx_reflection(g: &Ggx, wi: V3, wo: V3) -> (Floats, Floats) {
     let h2 = h.dot(h);
     let cos_h = 0.5 * h2.sqrt();
     let s = (h.x * h.x).mul_add(g.inv_ax2, (h.y * h.y).mul_add(g.inv_ay2, h.z * h.z));
-    let sigma = |w: V3| (w.x * w.x).mul_add(g.ax2, (w.y * w.y).mul_add(g.ay2, w.z * w.z)).sqrt();
-    let (si, so) = (sigma(wi), sigma(wo));
+    let (si, so) = (smith_sigma(g, wi), smith_sigma(g, wo));
     let masking = if g.height_correlated { 2.0 * wo.z.mul_add(si, wi.z * so) } else { (wi.z + si) * (wo.z + so) };
     let geo = h2 * h2 * g.norm / (s * s * masking);
     (Floats::and(above, geo), cos_h)

@@ -69,12 +69,21 @@ fn corners(t: &TableF32, cos: Floats, x: Floats, y: Floats) -> Corners {
     let a: [u32; LANES] = std::array::from_fn(|l| (v.0[l] as i32).clamp(0, n as i32 - 1) as u32);
     let fa = v - Floats(std::array::from_fn(|l| a[l] as i32 as f32));
     let b = a.map(|a| if a + 1 == n { 0 } else { a + 1 });
-    let run = |dk: u32, az: &[u32; LANES]| std::array::from_fn(|l| (k[l] + dk) * n + az[l]);
     Corners {
-        index: [run(0, &a), run(1, &a), run(0, &b), run(1, &b)],
+        index: [run(&k, 0, n, &a), run(&k, 1, n, &a), run(&k, 0, n, &b), run(&k, 1, n, &b)],
         weight: [(one - fk) * (one - fa), fk * (one - fa), (one - fk) * fa, fk * fa],
         count: 4,
     }
+}
+
+/// The runs (node k + dk, azimuth) of an anisotropic table of n azimuths, per lane.
+#[inline(always)]
+fn run(k: &[u32; LANES], dk: u32, n: u32, azimuth: &[u32; LANES]) -> [u32; LANES] {
+    let mut r = [0; LANES];
+    for ((r, &k), &a) in r.iter_mut().zip(k).zip(azimuth) {
+        *r = (k + dk) * n + a;
+    }
+    r
 }
 
 /// Σ_q weight_q values[index_q · stride + offset + i] for i < n ≤ N per lane: one record's interpolation, a value at

@@ -8,7 +8,7 @@
 use super::single_pass::{shared_eta, SpLayer, Walk};
 use crate::engine::{Floats, Mask, V3};
 use crate::optics::fresnel::FresnelForm;
-use crate::optics::lanes::{conductor, dielectric, ConductorIor, Lobe};
+use crate::optics::lanes::{conductor, dielectric, sin_theta, ConductorIor, Lobe};
 
 /// Channels the lanes carry at the most: more (spectral stacks) run on the float64 path.
 pub const MAX_CHANNELS: usize = 8;
@@ -167,7 +167,7 @@ impl LaneWalk {
 pub fn refracted_up(w: V3, d: Floats) -> V3 {
     let one = Floats::splat(1.0);
     let k = one - d;
-    let r = w.x.mul_add(w.x, w.y * w.y).sqrt();
+    let r = sin_theta(w);
     let clamped = (k * r).ge(one);
     let scale = Floats::select(clamped, 1.0 / r, k);
     let kz = k * w.z;
