@@ -80,7 +80,7 @@ def main() -> None:
         "",
         "float32 directions are evaluated in float32 lanes by the models with a lane kernel (`microfacet`'s rough GGX "
         "conductor, `tabulated`, `belcour`'s interpolated table, the single-pass walks of `steinberg` and "
-        "`weidlich_wilkie`; the anisotropic coat's dielectric under `steinberg` stays on the float64 path); the same"
+        "`weidlich_wilkie`); the same"
         " float32 directions as float64 take the float64 path. Relative error where "
         "f ≥ 1e-3 of the stack's peak, absolute error / peak elsewhere; 100,000 random pairs (20,000 for the "
         "population; 4,000 of the fuzz's extreme pairs per fuzz stack).",

@@ -38,7 +38,7 @@ use crate::error::{value_error, Result};
 use crate::optics::distribution::Distribution;
 use crate::stack::Stack;
 use crate::tables::steinberg::{self as lut, steinberg};
-use crate::tables::{lerp_lanes, node_lanes};
+use crate::tables::{bilerp_lanes, lerp_lanes, node_lanes};
 use glam::DVec3;
 
 /// The values of the option `lut`: lamina's tabulated integrals or the article's fitted closed forms.
@@ -125,17 +125,25 @@ pub fn prepare(stack: &Stack, opts: &Options) -> Result<Prepared> {
 }
 
 /// Steinberg's walk in float32 lanes (models/common/walk_lanes.rs): each dielectric interface's table sliced at its
-/// fixed α and η to [t, s / sin θ, T] in μ (`Steinberg::slice`), read at two nodes per direction.
+/// fixed α and η to [t, 1 − s / sin θ, T] in μ (`Steinberg::slice`), read at two nodes per direction; an anisotropic
+/// interface's at its η over (μ, α) (`Steinberg::slice_alpha`), read at each direction's projected roughness.
 struct Lanes {
     walk: LaneWalk,
-    /// Per layer: the slice of a dielectric interface, empty for the base.
-    slices: Vec<Vec<f32>>,
+    /// Per layer: the slice of a dielectric interface (empty for the base).
+    slices: Vec<Slice>,
     microfacet_transmission: bool,
 }
 
+/// A dielectric interface's table slice.
+enum Slice {
+    /// In μ at the interface's α.
+    Fixed(Vec<f32>),
+    /// In (μ, α), with αx², αy² and the tangent frame's (cos, sin) for the projected roughness.
+    Projected { records: Vec<f32>, ax2: f32, ay2: f32, frame: (f32, f32) },
+}
+
 impl Lanes {
-    /// The lanes' form of the walk; None for what they do not cover (LaneWalk::new, the fitted LUT, an anisotropic
-    /// dielectric interface, whose tables are read at the projected roughness of each direction).
+    /// The lanes' form of the walk; None for what they do not cover (LaneWalk::new, the fitted LUT).
     fn new(walk: &Walk, opts: &Options, channels: usize) -> Option<Lanes> {
         if opts.fitted {
             return None;
@@ -143,29 +151,50 @@ impl Lanes {
         let lane_walk = LaneWalk::new(walk, channels)?;
         let slice = |layer: &SpLayer| match layer {
             SpLayer::Dielectric { iface, .. } => {
-                let mf = &iface.mf;
-                let alpha = if mf.is_smooth() { 0.0 } else { mf.alpha_x };
-                (mf.alpha_x == mf.alpha_y).then(|| steinberg().slice(alpha, iface.eta[0]))
+                let (mf, eta) = (&iface.mf, iface.eta[0]);
+                if mf.alpha_x == mf.alpha_y || mf.is_smooth() {
+                    Slice::Fixed(steinberg().slice(if mf.is_smooth() { 0.0 } else { mf.alpha_x }, eta))
+                } else {
+                    let (c, s) = mf.frame();
+                    let (ax2, ay2) = ((mf.alpha_x * mf.alpha_x) as f32, (mf.alpha_y * mf.alpha_y) as f32);
+                    Slice::Projected { records: steinberg().slice_alpha(eta), ax2, ay2, frame: (c as f32, s as f32) }
+                }
             }
-            _ => Some(vec![]),
+            _ => Slice::Fixed(vec![]),
         };
-        let slices = walk.layers.iter().map(slice).collect::<Option<Vec<_>>>()?;
+        let slices = walk.layers.iter().map(slice).collect();
         Some(Lanes { walk: lane_walk, slices, microfacet_transmission: opts.microfacet_transmission })
     }
 }
 
 impl Lanes {
-    /// t (or T) at w's cosine from a layer's slice, and w refracted along the mean direction.
+    /// t (or T) at w's cosine (and projected roughness) from a layer's slice, and w refracted along the mean
+    /// direction.
     #[inline(always)]
-    fn lookup(&self, slice: &[f32], w: V3) -> (Floats, V3) {
+    fn lookup(&self, slice: &Slice, w: V3) -> (Floats, V3) {
         let at = node_lanes(w.z, lut::N_MU);
-        let t = if self.microfacet_transmission {
-            lerp_lanes(slice, 3, &at, 2).max(Floats::splat(0.0)).min(Floats::splat(1.0))
-        } else {
-            lerp_lanes(slice, 3, &at, 0)
+        let t_column = if self.microfacet_transmission { 2 } else { 0 };
+        let (t, d) = match slice {
+            Slice::Fixed(records) => (lerp_lanes(records, 3, &at, t_column), lerp_lanes(records, 3, &at, 1)),
+            Slice::Projected { records, ax2, ay2, frame } => {
+                let alpha = node_lanes(projected_alpha(w, *ax2, *ay2, *frame), lut::N_ALPHA);
+                let n = lut::N_ALPHA;
+                (bilerp_lanes(records, 3, n, &at, &alpha, t_column), bilerp_lanes(records, 3, n, &at, &alpha, 1))
+            }
         };
-        (t, walk_lanes::refracted_up(w, lerp_lanes(slice, 3, &at, 1)))
+        let t = if self.microfacet_transmission { t.max(Floats::splat(0.0)).min(Floats::splat(1.0)) } else { t };
+        (t, walk_lanes::refracted_up(w, d))
     }
+}
+
+/// Microfacet::projected_alpha in lanes: √((x² αx² + y² αy²) / (x² + y²)) in the tangent frame, αx along the normal.
+#[inline(always)]
+fn projected_alpha(w: V3, ax2: f32, ay2: f32, (c, s): (f32, f32)) -> Floats {
+    let w = w.rotate(Floats::splat(c), Floats::splat(s));
+    let (x2, y2) = (w.x * w.x, w.y * w.y);
+    let r2 = x2 + y2;
+    let alpha2 = x2.mul_add(Floats::splat(ax2), y2 * ay2) / r2;
+    Floats::select(r2.gt(Floats::splat(0.0)), alpha2.sqrt(), Floats::splat(ax2.sqrt()))
 }
 
 impl LaneTransport for Lanes {

@@ -93,6 +93,28 @@ pub fn lerp_lanes(records: &[f32], width: usize, (k, f): &([u32; LANES], Floats)
     f.mul_add(b - a, a)
 }
 
+/// Value i of the records of `width` values on a grid of `inner` nodes per outer node, bilinear between the outer
+/// nodes k, k + 1 and the inner nodes j, j + 1 per lane (`node_lanes` of each axis): a 2-D table's lookup in lanes.
+#[inline(always)]
+pub fn bilerp_lanes(
+    records: &[f32],
+    width: usize,
+    inner: usize,
+    (k, fk): &([u32; LANES], Floats),
+    (j, fj): &([u32; LANES], Floats),
+    i: usize,
+) -> Floats {
+    let mut v = [Floats::splat(0.0); 4];
+    for l in 0..LANES {
+        let at = (k[l] as usize * inner + j[l] as usize) * width + i;
+        let up = at + inner * width;
+        (v[0].0[l], v[1].0[l], v[2].0[l], v[3].0[l]) =
+            (records[at], records[at + width], records[up], records[up + width]);
+    }
+    let (low, high) = (fj.mul_add(v[1] - v[0], v[0]), fj.mul_add(v[3] - v[2], v[2]));
+    fk.mul_add(high - low, low)
+}
+
 /// Records of W f32 values on a regular grid of D axes, each axis spanning [0, 1] in its own coordinate: the one
 /// multilinear interpolation behind every table (FGD, Steinberg, Elek).
 pub struct Grid<const D: usize, const W: usize> {

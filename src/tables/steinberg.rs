@@ -221,6 +221,18 @@ impl Steinberg {
         (0..N_MU).flat_map(at).collect()
     }
 
+    /// The table at one interface's fixed η over (μ, α), [t, 1 − s / sin θ, T] per node ([μ][α]), for anisotropic
+    /// interfaces, which read it at each direction's projected roughness: bilinear interpolation of this slice is
+    /// the trilinear lookup exactly.
+    pub fn slice_alpha(&self, eta: f64) -> Vec<f32> {
+        let at = |n: usize| {
+            let (i, j) = ((n / N_ALPHA) as f64, (n % N_ALPHA) as f64);
+            let [t, s, _, big_t] = self.table.lookup([i / (N_MU - 1) as f64, j / (N_ALPHA - 1) as f64, eta_coord(eta)]);
+            [t as f32, (1.0 - s) as f32, big_t as f32]
+        };
+        (0..N_MU * N_ALPHA).flat_map(at).collect()
+    }
+
     /// (t, s) from the table (s through s / sin θ).
     pub fn tabulated(&self, mu: f64, alpha: f64, eta: f64) -> (f64, f64) {
         let [t, s, ..] = self.interpolate(mu, alpha, eta);
