@@ -20,6 +20,10 @@ use std::sync::atomic::{AtomicBool, Ordering};
 
 /// A model's float32 kernel.
 pub trait Kernel: Sync {
+    /// A correction of f (transport_fit's s f + a): `eval` finds in out[c] the f that a model's own kernel wrote into
+    /// the output, and replaces it.
+    const CORRECTS: bool = false;
+
     /// f(wi, wo) of LANES pairs of unit directions (either side of the surface), channel c into out[c].
     fn eval(&self, wi: V3, wo: V3, out: &mut [Floats]);
 }
@@ -98,6 +102,11 @@ fn rows<K: Kernel>(k: &K, wi: Rows, wo: Rows, first: usize, out: &mut [f32], f: 
         let ((wi, ok_i), (wo, ok_o)) = (unit(load(wi, r, m)), unit(load(wo, r, m)));
         if (!(ok_i & ok_o)).any() {
             return false;
+        }
+        if K::CORRECTS {
+            for (i, row) in o.chunks_exact(channels).enumerate() {
+                row.iter().zip(f.iter_mut()).for_each(|(&v, f)| f.0[i] = v);
+            }
         }
         k.eval(wi, wo, f);
         // Clamped to the largest finite float32, as the float64 path's float32 output is: a grazing mirror pair with

@@ -22,19 +22,24 @@
 //! geometric-mean roughness √(αx αy) for anisotropic interfaces. The layers are the single-pass models' (their
 //! Fresnel terms, refraction and Beer–Lambert too). Sampling: each rough lobe by its visible normals, weighted by
 //! its share of the energy, the diffuse base by the cosine, and the layered models' defensive cosine share.
+//! Float32 inputs run in lanes (`Lanes`), with 1 − E sliced from the FGD table at each interface's α, η and κ: linear
+//! interpolation in μ of the slice is the table's quadrilinear lookup exactly.
 
 use super::common::block::eval_rows;
 use super::common::mixture::defensive_mixture;
 use super::common::options::{choice, flag, g2};
 use super::common::single_pass::{self, beer_lambert, refracted_up, SpInterface, SpLayer};
+use super::common::walk_lanes;
 use super::{Args, InputSpec, Inputs, Model, ModelInfo, OptionSpec, Properties, Proposal};
 use crate::bsdf;
+use crate::engine::{self, Floats, Rows, V3};
 use crate::error::Result;
 use crate::optics::distribution::{Distribution, G2Form, Microfacet};
 use crate::optics::fresnel::FresnelForm;
+use crate::optics::lanes::{conductor, dielectric, dielectric_transmittance, ConductorIor, Lobe};
 use crate::optics::{diffuse, sin_theta};
 use crate::stack::Stack;
-use crate::tables;
+use crate::tables::{self, fgd, lerp_lanes, node_lanes};
 use glam::DVec3;
 
 pub const INFO: ModelInfo = ModelInfo {
@@ -83,6 +88,8 @@ pub struct Prepared {
     pub g2: G2Form,
     pub reciprocal: bool,
     pub channels: usize,
+    /// The float32 kernel, where the lanes cover the stack (`Lanes::new`).
+    lanes: Option<Lanes>,
 }
 
 /// OpenPBR's roughening of what lies under a rough coat, r′ = min(1, r⁴ + 2 r_c⁴)^{1/4} in its roughness r = √α,
@@ -107,7 +114,8 @@ pub fn prepare(stack: &Stack, opts: &Options) -> Result<Prepared> {
         }
     }
     tables::fgd(); // generate or load the table outside the parallel evaluation
-    Ok(Prepared { layers, g2: opts.g2, reciprocal: opts.reciprocal, channels: stack.channels })
+    let lanes = Lanes::new(&layers, opts, stack.channels);
+    Ok(Prepared { layers, g2: opts.g2, reciprocal: opts.reciprocal, channels: stack.channels, lanes })
 }
 
 /// Fresnel reflectance of channel c at cosine `cos` (exact dielectric or conductor).
@@ -207,9 +215,150 @@ impl Prepared {
     }
 }
 
+/// Channels the lanes carry at the most: more (spectral stacks) run on the float64 path.
+const MAX_CHANNELS: usize = 8;
+
+/// An interface as the lanes take it.
+enum LaneInterface {
+    /// The lobe (None: smooth), the relative IOR, the refraction's d = 1 − 1/η (walk_lanes::refracted_up), and per
+    /// channel σt·d of the slab below; `unreflected`: 1 − E(μ) per μ node of the FGD table and channel (empty for a
+    /// smooth interface, whose 1 − E is the Fresnel transmittance).
+    Dielectric {
+        lobe: Option<Lobe>,
+        eta: f64,
+        d: f32,
+        depth: Vec<f32>,
+        unreflected: Vec<f32>,
+    },
+    Conductor {
+        lobe: Option<Lobe>,
+        ior: Vec<ConductorIor>,
+    },
+}
+
+/// Albedo scaling in float32 lanes (`Prepared::eval`, term by term).
+struct Lanes {
+    interfaces: Vec<LaneInterface>,
+    /// ρ/π per channel of a Lambertian base (empty: no diffuse base).
+    base: Vec<f32>,
+    reciprocal: bool,
+    channels: usize,
+}
+
+impl Lanes {
+    /// The lanes' form of the prepared layers; None where they do not cover it: dispersion, an Oren–Nayar base, more
+    /// than MAX_CHANNELS channels (a Lobe covers every distribution and G2 that albedo scaling takes: GGX).
+    fn new(layers: &[SpLayer], opts: &Options, channels: usize) -> Option<Lanes> {
+        if channels > MAX_CHANNELS || !single_pass::shared_eta(layers) {
+            return None;
+        }
+        let lobe = |i: &SpInterface| if i.mf.is_smooth() { Some(None) } else { Lobe::new(&i.mf, opts.g2).map(Some) };
+        let mut interfaces = Vec::new();
+        let mut base = Vec::new();
+        for layer in layers {
+            match layer {
+                SpLayer::Dielectric { iface, thickness, sigma_t, .. } => {
+                    let eta = iface.eta[0];
+                    // 1 − E per μ node, channels fastest; κ may differ per channel (the FGD lookup reads it).
+                    let alpha = (iface.mf.alpha_x * iface.mf.alpha_y).sqrt();
+                    let unreflected = match iface.mf.is_smooth() {
+                        true => vec![],
+                        false => (0..fgd::N_MU)
+                            .flat_map(|k| {
+                                let mu = k as f64 / (fgd::N_MU - 1) as f64;
+                                (0..channels).map(move |c| (1.0 - fgd().lookup(mu, alpha, eta, iface.kappa[c])) as f32)
+                            })
+                            .collect(),
+                    };
+                    interfaces.push(LaneInterface::Dielectric {
+                        lobe: lobe(iface)?,
+                        eta,
+                        d: (1.0 - 1.0 / eta) as f32,
+                        depth: sigma_t.iter().map(|s| (s * thickness) as f32).collect(),
+                        unreflected,
+                    });
+                }
+                SpLayer::Conductor { iface, .. } => {
+                    let ior =
+                        (0..channels).map(|c| ConductorIor::new(FresnelForm::Exact, iface.eta[c], iface.kappa[c]));
+                    interfaces.push(LaneInterface::Conductor { lobe: lobe(iface)?, ior: ior.collect() });
+                    break;
+                }
+                SpLayer::Diffuse { albedo, sigma, .. } if *sigma == 0.0 => {
+                    base = albedo.iter().map(|a| (a * std::f64::consts::FRAC_1_PI) as f32).collect();
+                }
+                SpLayer::Diffuse { .. } => return None,
+            }
+        }
+        Some(Lanes { interfaces, base, reciprocal: opts.reciprocal, channels })
+    }
+}
+
+/// 1 − E(μ) of channel c in lanes: the interface's FGD slice, or the Fresnel transmittance of a smooth interface.
+#[inline(always)]
+fn unreflected_lanes(unreflected: &[f32], channels: usize, eta: f64, mu: Floats, c: usize) -> Floats {
+    match unreflected.is_empty() {
+        true => dielectric_transmittance(mu, eta),
+        false => lerp_lanes(unreflected, channels, &node_lanes(mu, fgd::N_MU), c),
+    }
+}
+
+impl engine::Kernel for Lanes {
+    #[inline(always)]
+    fn eval(&self, wi: V3, wo: V3, out: &mut [Floats]) {
+        let (zero, one) = (Floats::splat(0.0), Floats::splat(1.0));
+        let out = &mut out[..self.channels];
+        out.fill(zero);
+        let alive = wi.z.gt(zero) & wo.z.gt(zero);
+        let mut weight = [one; MAX_CHANNELS];
+        let weight = &mut weight[..self.channels];
+        for interface in &self.interfaces {
+            match interface {
+                LaneInterface::Dielectric { lobe, eta, d, depth, unreflected } => {
+                    if let Some(lobe) = lobe {
+                        let (geo, cos_h) = lobe.reflection(wi, wo);
+                        let lobe = geo * dielectric(cos_h, *eta);
+                        for (o, w) in out.iter_mut().zip(weight.iter()) {
+                            *o = *o + Floats::and(alive, *w * lobe);
+                        }
+                    }
+                    let d = Floats::splat(*d);
+                    let (down_i, down_o) = (walk_lanes::refracted_up(wi, d), walk_lanes::refracted_up(wo, d));
+                    let path = 1.0 / down_i.z.max(Floats::splat(1e-9)) + 1.0 / down_o.z.max(Floats::splat(1e-9));
+                    for (c, (w, &depth)) in weight.iter_mut().zip(depth).enumerate() {
+                        let view = unreflected_lanes(unreflected, self.channels, *eta, wo.z, c);
+                        let light = match self.reciprocal {
+                            true => unreflected_lanes(unreflected, self.channels, *eta, wi.z, c),
+                            false => one,
+                        };
+                        let beer = if depth == 0.0 { one } else { (-(path * depth)).exp() };
+                        *w = *w * (light * view).max(zero) * beer;
+                    }
+                }
+                LaneInterface::Conductor { lobe, ior } => {
+                    if let Some(lobe) = lobe {
+                        let (geo, cos_h) = lobe.reflection(wi, wo);
+                        for ((o, w), ior) in out.iter_mut().zip(weight.iter()).zip(ior) {
+                            *o = *o + Floats::and(alive, *w * geo * conductor(cos_h, ior));
+                        }
+                    }
+                    return;
+                }
+            }
+        }
+        for ((o, w), &rho) in out.iter_mut().zip(weight.iter()).zip(&self.base) {
+            *o = *o + Floats::and(alive, *w * rho);
+        }
+    }
+}
+
 impl Model for Prepared {
     fn eval_block(&self, wi: [&[f64]; 3], wo: [&[f64]; 3], _: &Inputs, out: &mut [f64]) {
         eval_rows(wi, wo, out, |_, wi, wo, o| self.eval(wi, wo, o))
+    }
+
+    fn eval_f32(&self, wi: Rows, wo: Rows, out: &mut [f32]) -> bool {
+        self.lanes.as_ref().is_some_and(|k| engine::eval(k, self.channels, wi, wo, out))
     }
 
     fn proposals(&self, wo: DVec3) -> Vec<(f64, Proposal)> {

@@ -162,15 +162,16 @@ impl LaneWalk {
 /// Direction `w` (unit, per lane) refracted into a slab and flipped to point up: the same azimuth and sin θt =
 /// min(k sin θ, 1) (single_pass::refracted_up), k given as d = 1 − k. cos θt as √(k² cos²θ + d (2 − d)): this does
 /// not cancel at grazing incidence as 1 − sin²θt would in float32, and d keeps the digits that k loses near 1 (an
-/// interface nearly index-matched, where cos θt ≈ cos θ is small).
+/// interface nearly index-matched, where cos θt ≈ cos θ is small). Total internal reflection where that radicand is
+/// not positive (k sin θ ≥ 1), decided from it rather than from k sin θ, which float32 rounds to 1 at grazing
+/// incidence when k rounds to 1.
 #[inline(always)]
 pub fn refracted_up(w: V3, d: Floats) -> V3 {
-    let one = Floats::splat(1.0);
-    let k = one - d;
-    let r = sin_theta(w);
-    let clamped = (k * r).ge(one);
-    let scale = Floats::select(clamped, 1.0 / r, k);
+    let zero = Floats::splat(0.0);
+    let k = 1.0 - d;
     let kz = k * w.z;
-    let cos_t = Floats::and(!clamped, kz.mul_add(kz, d * (2.0 - d)).max(Floats::splat(0.0)).sqrt());
-    V3 { x: w.x * scale, y: w.y * scale, z: cos_t }
+    let cos2_t = kz.mul_add(kz, d * (2.0 - d));
+    let clamped = cos2_t.le(zero);
+    let scale = Floats::select(clamped, 1.0 / sin_theta(w), k);
+    V3 { x: w.x * scale, y: w.y * scale, z: Floats::and(!clamped, cos2_t.max(zero).sqrt()) }
 }

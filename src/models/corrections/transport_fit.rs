@@ -7,20 +7,22 @@
 //! the model misses (multiple scattering in slabs, inter-reflections between layers) returns as a, spread evenly over
 //! the azimuth, and the energy of the model's own lobes is set by s. The azimuth φ′ (from the mirror plane) is sampled
 //! at φ′ = π t², t at AZIMUTHS midpoints, dense where narrow lobes peak. Evaluation interpolates (s, a) bilinearly in
-//! x = √(1 − cos θ), as the table does.
+//! x = √(1 − cos θ), as the table does. Float32 inputs: the model's own lane kernel, then the fit in lanes
+//! (`Lanes`, an engine correction), where the model has a lane kernel.
 //!
 //! The adding-doubling solver is isotropic: an anisotropic stack is evaluated as the model gives it. The fit is of
 //! the stack as prepared, so per-element inputs (flakes, the patina mask) raise a ValueError with it. The GPU applies
 //! the same fit after the model's own f (gpu/shaders/fit.wgsl, `gpu_values`).
 
+use crate::engine::{self, Floats, Rows, V3};
 use crate::error::{value_error, Result};
 use crate::models::common::block::simd_columns;
 use crate::models::common::mixture::DEFENSIVE;
-use crate::models::tabulated::{self, anisotropic_layer, zenith};
+use crate::models::tabulated::{self, anisotropic_layer, zenith, zenith_node_lanes};
 use crate::models::{Inputs, Model, Proposal, BLOCK};
 use crate::stack::Stack;
 use crate::tables::adding_doubling::{Cells, NODES, N_THETA};
-use crate::tables::node;
+use crate::tables::{bilerp_lanes, node};
 use glam::DVec3;
 use rayon::prelude::*;
 use std::f64::consts::PI;
@@ -176,10 +178,39 @@ impl TransportFit {
     }
 }
 
+/// The fit in float32 lanes: s f + a, (s, a) bilinear in the zenith coordinates (`TransportFit::eval_columns`).
+struct Lanes<'a> {
+    /// The (s, a) records, flattened: 2 · channels values per (light node, view node).
+    fit: &'a [f32],
+    channels: usize,
+}
+
+impl engine::Kernel for Lanes<'_> {
+    const CORRECTS: bool = true;
+
+    #[inline(always)]
+    fn eval(&self, wi: V3, wo: V3, f: &mut [Floats]) {
+        let zero = Floats::splat(0.0);
+        let (i, o) = (zenith_node_lanes(wi, NODES), zenith_node_lanes(wo, NODES));
+        let above = wi.z.gt(zero) & wo.z.gt(zero);
+        let width = 2 * self.channels;
+        for (c, f) in f.iter_mut().enumerate() {
+            let s = bilerp_lanes(self.fit, width, NODES, &i, &o, 2 * c);
+            let a = bilerp_lanes(self.fit, width, NODES, &i, &o, 2 * c + 1);
+            *f = Floats::select(above, s.mul_add(*f, a), *f);
+        }
+    }
+}
+
 impl Model for TransportFit {
     fn eval_block(&self, wi: [&[f64]; 3], wo: [&[f64]; 3], inputs: &Inputs, out: &mut [f64]) {
         self.model.eval_block(wi, wo, inputs, out);
         simd_columns!(TransportFit, self, wi, wo, out)
+    }
+
+    fn eval_f32(&self, wi: Rows, wo: Rows, out: &mut [f32]) -> bool {
+        let lanes = Lanes { fit: self.fit.as_flattened(), channels: self.channels };
+        self.model.eval_f32(wi, wo, out) && engine::eval(&lanes, self.channels, wi, wo, out)
     }
 
     fn proposals(&self, wo: DVec3) -> Vec<(f64, Proposal)> {
