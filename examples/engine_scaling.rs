@@ -35,7 +35,7 @@ fn main() {
             let mut times: Vec<f64> = (0..31)
                 .map(|_| {
                     let t = Instant::now();
-                    assert!(p.eval_f32(Rows::Packed(&wi), Rows::Packed(&wo), &mut out));
+                    assert!(p.eval_f32(Rows::Packed(&wi), Rows::Packed(&wo), None, &mut out));
                     t.elapsed().as_secs_f64()
                 })
                 .collect();

@@ -2,7 +2,8 @@
 //! lanes) is run here over NumPy's float32 rows, from load to store in float32, in parallel with rayon.
 //!
 //! What a model writes: a type that implements `Kernel` (f for LANES pairs of unit directions) with `#[inline(always)]`
-//! on its `eval`, and a `Model::eval_f32` that calls `engine::eval` with it. Everything else is here: the (n, 3) rows
+//! on its `eval`, and a `Model::eval_f32` that calls `engine::eval` with it and the correction it is given (a
+//! `Correction` of f applied in the same pass, lane group by lane group: transport_fit's). Everything else is here: the (n, 3) rows
 //! are read straight from NumPy's memory (or one broadcast row is splat), de-interleaved, checked and normalised in
 //! lanes, evaluated, and written straight into the output. No allocation per block and no zeroing pass. The row
 //! loop is compiled twice, for AVX2 + FMA (the kernel's lane operations become 256-bit instructions) and portably,
@@ -20,12 +21,20 @@ use std::sync::atomic::{AtomicBool, Ordering};
 
 /// A model's float32 kernel.
 pub trait Kernel: Sync {
-    /// A correction of f (transport_fit's s f + a): `eval` finds in out[c] the f that a model's own kernel wrote into
-    /// the output, and replaces it.
-    const CORRECTS: bool = false;
-
     /// f(wi, wo) of LANES pairs of unit directions (either side of the surface), channel c into out[c].
     fn eval(&self, wi: V3, wo: V3, out: &mut [Floats]);
+}
+
+/// A correction of a kernel's f in lanes, applied in the kernel's pass before the lanes are stored (transport_fit's
+/// s f + a after a model's own f).
+pub trait Correction: Sync {
+    fn apply(&self, wi: V3, wo: V3, f: &mut [Floats]);
+}
+
+/// No correction (`None::<&()>`).
+impl Correction for () {
+    #[inline(always)]
+    fn apply(&self, _: V3, _: V3, _: &mut [Floats]) {}
 }
 
 /// An (n, 3) float32 input: n rows in C order, or one row broadcast to every element.
@@ -48,15 +57,22 @@ impl<'a> Rows<'a> {
 /// Rows per parallel task.
 const TASK_ROWS: usize = 2048;
 
-/// f of every pair (wi[r], wo[r]) into out (rows of `channels` values) by `kernel`; false, with `out` partly written,
-/// where a row needs the careful path (module comment).
-pub fn eval<K: Kernel>(kernel: &K, channels: usize, wi: Rows, wo: Rows, out: &mut [f32]) -> bool {
-    let rows: RowLoop<K> = rows_for_cpu::<K>();
+/// f of every pair (wi[r], wo[r]) into out (rows of `channels` values) by `kernel`, then `correction` if any; false,
+/// with `out` partly written, where a row needs the careful path (module comment).
+pub fn eval<K: Kernel, C: Correction>(
+    kernel: &K,
+    correction: Option<&C>,
+    channels: usize,
+    wi: Rows,
+    wo: Rows,
+    out: &mut [f32],
+) -> bool {
+    let rows: RowLoop<K, C> = rows_for_cpu::<K, C>();
     let failed = AtomicBool::new(false);
     out.par_chunks_mut(TASK_ROWS * channels).enumerate().for_each_init(
         || vec![Floats::splat(0.0); channels],
         |scratch, (t, o)| {
-            if !failed.load(Ordering::Relaxed) && !rows(kernel, wi, wo, t * TASK_ROWS, o, scratch) {
+            if !failed.load(Ordering::Relaxed) && !rows(kernel, correction, wi, wo, t * TASK_ROWS, o, scratch) {
                 failed.store(true, Ordering::Relaxed);
             }
         },
@@ -64,19 +80,19 @@ pub fn eval<K: Kernel>(kernel: &K, channels: usize, wi: Rows, wo: Rows, out: &mu
     !failed.into_inner()
 }
 
-/// A row loop: `rows` for kernel K, compiled for one instruction set.
-type RowLoop<K> = fn(&K, Rows, Rows, usize, &mut [f32], &mut [Floats]) -> bool;
+/// A row loop: `rows` for kernel K and correction C, compiled for one instruction set.
+type RowLoop<K, C> = fn(&K, Option<&C>, Rows, Rows, usize, &mut [f32], &mut [Floats]) -> bool;
 
 /// The row loop compiled for this CPU: AVX2 + FMA when it has them, else portable.
-fn rows_for_cpu<K: Kernel>() -> RowLoop<K> {
+fn rows_for_cpu<K: Kernel, C: Correction>() -> RowLoop<K, C> {
     #[cfg(target_arch = "x86_64")]
     if has_avx2() {
-        return |k, wi, wo, first, out, scratch| {
+        return |k, c, wi, wo, first, out, scratch| {
             // SAFETY: the CPU supports every feature the function is compiled for.
-            unsafe { rows_avx2(k, wi, wo, first, out, scratch) }
+            unsafe { rows_avx2(k, c, wi, wo, first, out, scratch) }
         };
     }
-    rows::<K>
+    rows::<K, C>
 }
 
 /// Whether the CPU has AVX2 and FMA (checked once, then cached by std).
@@ -88,14 +104,30 @@ pub fn has_avx2() -> bool {
 
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2,fma")]
-unsafe fn rows_avx2<K: Kernel>(k: &K, wi: Rows, wo: Rows, first: usize, out: &mut [f32], f: &mut [Floats]) -> bool {
-    rows(k, wi, wo, first, out, f)
+unsafe fn rows_avx2<K: Kernel, C: Correction>(
+    k: &K,
+    c: Option<&C>,
+    wi: Rows,
+    wo: Rows,
+    first: usize,
+    out: &mut [f32],
+    f: &mut [Floats],
+) -> bool {
+    rows(k, c, wi, wo, first, out, f)
 }
 
 /// Rows first.. of the output slice `out`, LANES at a time; false at the first group with a row the engine does
 /// not take.
 #[inline(always)]
-fn rows<K: Kernel>(k: &K, wi: Rows, wo: Rows, first: usize, out: &mut [f32], f: &mut [Floats]) -> bool {
+fn rows<K: Kernel, C: Correction>(
+    k: &K,
+    c: Option<&C>,
+    wi: Rows,
+    wo: Rows,
+    first: usize,
+    out: &mut [f32],
+    f: &mut [Floats],
+) -> bool {
     let channels = f.len();
     for (g, o) in out.chunks_mut(LANES * channels).enumerate() {
         let (r, m) = (first + g * LANES, o.len() / channels);
@@ -103,12 +135,10 @@ fn rows<K: Kernel>(k: &K, wi: Rows, wo: Rows, first: usize, out: &mut [f32], f: 
         if (!(ok_i & ok_o)).any() {
             return false;
         }
-        if K::CORRECTS {
-            for (i, row) in o.chunks_exact(channels).enumerate() {
-                row.iter().zip(f.iter_mut()).for_each(|(&v, f)| f.0[i] = v);
-            }
-        }
         k.eval(wi, wo, f);
+        if let Some(c) = c {
+            c.apply(wi, wo, f);
+        }
         // Clamped to the largest finite float32, as the float64 path's float32 output is: a grazing mirror pair with
         // a denormal zenith can reach 1e41.
         f.iter_mut().for_each(|v| *v = v.min(Floats::splat(f32::MAX)));
@@ -206,8 +236,8 @@ pub mod tests {
         let n = wi.len() / 3;
         let (mut a, mut b) = (vec![0.0; n * channels], vec![0.0; n * channels]);
         let mut f = vec![Floats::splat(0.0); channels];
-        assert!(rows(k, Rows::Packed(wi), Rows::Packed(wo), 0, &mut a, &mut f));
-        assert!(eval(k, channels, Rows::Packed(wi), Rows::Packed(wo), &mut b));
+        assert!(rows(k, None::<&()>, Rows::Packed(wi), Rows::Packed(wo), 0, &mut a, &mut f));
+        assert!(eval(k, None::<&()>, channels, Rows::Packed(wi), Rows::Packed(wo), &mut b));
         (a, b)
     }
 
@@ -226,13 +256,13 @@ pub mod tests {
         let wi: Vec<f32> = (0..n).flat_map(|r| [0.0, 0.0, 1.0 + r as f32]).collect();
         let wo: Vec<f32> = (0..n).flat_map(|r| [(r as f32).cos(), (r as f32).sin(), 0.0]).collect();
         let mut out = vec![0.0; 2 * n];
-        assert!(eval(&Dot, 2, Rows::Packed(&wi), Rows::Packed(&wo), &mut out));
+        assert!(eval(&Dot, None::<&()>, 2, Rows::Packed(&wi), Rows::Packed(&wo), &mut out));
         for r in 0..n {
             assert_eq!(out[2 * r], 0.0, "row {r}");
             assert_eq!(out[2 * r + 1], std::f32::consts::E, "row {r}");
         }
         let mut splat = vec![0.0; 2 * n];
-        assert!(eval(&Dot, 2, Rows::Splat([0.0, 0.0, 2.0]), Rows::Packed(&wo), &mut splat));
+        assert!(eval(&Dot, None::<&()>, 2, Rows::Splat([0.0, 0.0, 2.0]), Rows::Packed(&wo), &mut splat));
         assert_eq!(splat, out);
     }
 
@@ -243,7 +273,7 @@ pub mod tests {
             let mut wi = wo.clone();
             wi[3 * 57..3 * 58].copy_from_slice(&[bad, 0.0, 0.0]);
             let mut out = vec![0.0; 200];
-            assert!(!eval(&Dot, 2, Rows::Packed(&wi), Rows::Packed(&wo), &mut out), "{bad}");
+            assert!(!eval(&Dot, None::<&()>, 2, Rows::Packed(&wi), Rows::Packed(&wo), &mut out), "{bad}");
         }
     }
 

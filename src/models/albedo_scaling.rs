@@ -34,6 +34,7 @@ use super::{Args, InputSpec, Inputs, Model, ModelInfo, OptionSpec, Properties, P
 use crate::bsdf;
 use crate::engine::{self, Floats, Rows, V3};
 use crate::error::Result;
+use crate::models::FitLanes;
 use crate::optics::distribution::{Distribution, G2Form, Microfacet};
 use crate::optics::fresnel::FresnelForm;
 use crate::optics::lanes::{conductor, dielectric, dielectric_transmittance, ConductorIor, Lobe};
@@ -357,8 +358,8 @@ impl Model for Prepared {
         eval_rows(wi, wo, out, |_, wi, wo, o| self.eval(wi, wo, o))
     }
 
-    fn eval_f32(&self, wi: Rows, wo: Rows, out: &mut [f32]) -> bool {
-        self.lanes.as_ref().is_some_and(|k| engine::eval(k, self.channels, wi, wo, out))
+    fn eval_f32(&self, wi: Rows, wo: Rows, fit: Option<&FitLanes>, out: &mut [f32]) -> bool {
+        self.lanes.as_ref().is_some_and(|k| engine::eval(k, fit, self.channels, wi, wo, out))
     }
 
     fn proposals(&self, wo: DVec3) -> Vec<(f64, Proposal)> {

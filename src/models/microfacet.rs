@@ -16,6 +16,7 @@ use super::{Args, InputSpec, Model, ModelInfo, OptionSpec, Properties, Proposal}
 use crate::bsdf;
 use crate::engine::{self, Floats, Rows, V3};
 use crate::error::{value_error, Result};
+use crate::models::FitLanes;
 use crate::optics::diffuse;
 use crate::optics::distribution::{Distribution, G2Form, Microfacet};
 use crate::optics::fresnel::{self, FresnelForm};
@@ -124,11 +125,11 @@ impl Model for Prepared {
         simd_columns!(Prepared, self, wi, wo, out)
     }
 
-    fn eval_f32(&self, wi: Rows, wo: Rows, out: &mut [f32]) -> bool {
+    fn eval_f32(&self, wi: Rows, wo: Rows, fit: Option<&FitLanes>, out: &mut [f32]) -> bool {
         match self {
             Prepared::Conductor { mf, g2, fresnel, eta, k } => Ggx::new(mf, *g2).is_some_and(|ggx| {
                 let ior = eta.iter().zip(k).map(|(&e, &k)| ConductorIor::new(*fresnel, e, k)).collect();
-                engine::eval(&ConductorLanes { ggx, ior }, eta.len(), wi, wo, out)
+                engine::eval(&ConductorLanes { ggx, ior }, fit, eta.len(), wi, wo, out)
             }),
             _ => false,
         }

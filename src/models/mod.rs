@@ -28,6 +28,7 @@ use crate::optics::distribution::Microfacet;
 use crate::stack::Stack;
 use crate::transport::Microsurface;
 use common::options::{microsurface, DISTRIBUTION, G2};
+pub use corrections::transport_fit::FitLanes;
 use glam::DVec3;
 use std::sync::{Arc, Mutex};
 
@@ -128,9 +129,10 @@ pub trait Model: Send + Sync {
     }
 
     /// f of float32 (n, 3) direction rows into `out` (n rows of one value per channel) by the float32 engine
-    /// (engine/), if the model has a lane kernel for this stack and these options; false sends the call to
-    /// `eval_block` (no lane kernel, per-element inputs, or a row the engine does not take).
-    fn eval_f32(&self, _wi: Rows, _wo: Rows, _out: &mut [f32]) -> bool {
+    /// (engine/), corrected by `fit` in the same pass if given (the improved variants), if the model has a lane
+    /// kernel for this stack and these options; false sends the call to `eval_block` (no lane kernel, per-element
+    /// inputs, or a row the engine does not take).
+    fn eval_f32(&self, _wi: Rows, _wo: Rows, _fit: Option<&FitLanes>, _out: &mut [f32]) -> bool {
         false
     }
 

@@ -35,6 +35,7 @@ use super::{Args, InputSpec, Model, ModelInfo, OptionSpec, Properties, Proposal}
 use crate::bsdf;
 use crate::engine::{self, Floats, Mask, Rows, V3};
 use crate::error::{value_error, Result};
+use crate::models::FitLanes;
 use crate::optics::distribution::Distribution;
 use crate::stack::Stack;
 use crate::tables::steinberg::{self as lut, steinberg};
@@ -258,8 +259,8 @@ impl Model for Prepared {
         simd_columns!(Prepared, self, wi, wo, out)
     }
 
-    fn eval_f32(&self, wi: Rows, wo: Rows, out: &mut [f32]) -> bool {
-        self.lanes.as_ref().is_some_and(|k| engine::eval(k, self.channels, wi, wo, out))
+    fn eval_f32(&self, wi: Rows, wo: Rows, fit: Option<&FitLanes>, out: &mut [f32]) -> bool {
+        self.lanes.as_ref().is_some_and(|k| engine::eval(k, fit, self.channels, wi, wo, out))
     }
 
     fn proposals(&self, wo: DVec3) -> Vec<(f64, Proposal)> {

@@ -20,6 +20,7 @@ use super::common::options::{microsurface, DISTRIBUTION, G2};
 use super::{microfacet, InputSpec, Model, ModelInfo, OptionSpec, Properties, Proposal};
 use crate::engine::{self, Floats, Rows, LANES, V3};
 use crate::error::{value_error, Result};
+use crate::models::FitLanes;
 use crate::optics::distribution::{G2Form, Microfacet};
 use crate::optics::fresnel::{self, FresnelForm};
 use crate::optics::lanes::{self, Ggx};
@@ -238,17 +239,20 @@ pub(crate) fn zenith_node_lanes(w: V3, n: usize) -> ([u32; LANES], Floats) {
     let x = (w.x.mul_add(w.x, w.y * w.y) / (1.0 + z)).sqrt().min(one);
     let (top, m) = (n as i32 - 1, (n - 1) as f32);
     let (s, t) = (x * m, z / (1.0 + x) * m);
-    let below: [i32; LANES] = std::array::from_fn(|l| (s.0[l] as i32).min(top - 1));
-    // ⌈t⌉ through i32 conversions (t ≥ 0), at least 1: the upper node counted from the top.
-    let above: [i32; LANES] = std::array::from_fn(|l| {
-        let k = t.0[l] as i32;
-        (k + ((k as f32) < t.0[l]) as i32).clamp(1, top)
-    });
     let near_top = x.gt(Floats::splat(0.5));
-    let node = std::array::from_fn(|l| (if near_top.0[l] != 0 { top - above[l] } else { below[l] }) as u32);
-    let (from_below, from_above) =
-        (s - Floats(std::array::from_fn(|l| below[l] as f32)), Floats(std::array::from_fn(|l| above[l] as f32)) - t);
-    (node, Floats::select(near_top, from_above, from_below).max(zero).min(one))
+    // A plain loop (not array::from_fn, whose closures were compiled outside the AVX2 row loop).
+    let (mut node, mut f) = ([0u32; LANES], Floats::splat(0.0));
+    for (l, (node, f)) in node.iter_mut().zip(&mut f.0).enumerate() {
+        let below = (s.0[l] as i32).min(top - 1);
+        // ⌈t⌉ through i32 conversions (t ≥ 0), at least 1: the upper node counted from the top.
+        let k = t.0[l] as i32;
+        let above = (k + ((k as f32) < t.0[l]) as i32).clamp(1, top);
+        (*node, *f) = match near_top.0[l] != 0 {
+            true => ((top - above) as u32, above as f32 - t.0[l]),
+            false => (below as u32, s.0[l] - below as f32),
+        };
+    }
+    (node, f.max(zero).min(one))
 }
 
 impl engine::Kernel for Lanes<'_> {
@@ -319,7 +323,7 @@ impl Model for Prepared {
         simd_columns!(Prepared, self, wi, wo, out)
     }
 
-    fn eval_f32(&self, wi: Rows, wo: Rows, out: &mut [f32]) -> bool {
+    fn eval_f32(&self, wi: Rows, wo: Rows, fit: Option<&FitLanes>, out: &mut [f32]) -> bool {
         let top = match &self.top {
             Some(mf) => match Ggx::new(mf, self.g2) {
                 Some(ggx) => Some(ggx),
@@ -327,7 +331,7 @@ impl Model for Prepared {
             },
             None => None,
         };
-        engine::eval(&Lanes { p: self, top }, self.eta.len(), wi, wo, out)
+        engine::eval(&Lanes { p: self, top }, fit, self.eta.len(), wi, wo, out)
     }
 
     fn proposals(&self, wo: DVec3) -> Vec<(f64, Proposal)> {

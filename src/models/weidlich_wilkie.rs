@@ -43,6 +43,7 @@ use super::{Args, InputSpec, Inputs, Model, ModelInfo, OptionSpec, Properties, P
 use crate::bsdf;
 use crate::engine::{self, Floats, Rows, V3};
 use crate::error::{value_error, Result};
+use crate::models::FitLanes;
 use crate::optics::distribution::{Distribution, G2Form};
 use crate::optics::lanes::{self, dielectric_transmittance};
 use crate::optics::sin_theta;
@@ -292,8 +293,8 @@ impl Model for Prepared {
         }
     }
 
-    fn eval_f32(&self, wi: Rows, wo: Rows, out: &mut [f32]) -> bool {
-        self.lanes.as_ref().is_some_and(|k| engine::eval(k, self.channels, wi, wo, out))
+    fn eval_f32(&self, wi: Rows, wo: Rows, fit: Option<&FitLanes>, out: &mut [f32]) -> bool {
+        self.lanes.as_ref().is_some_and(|k| engine::eval(k, fit, self.channels, wi, wo, out))
     }
 
     fn check_inputs(&self, given: &[bool]) -> Result<()> {

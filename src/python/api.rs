@@ -323,7 +323,7 @@ pub fn eval<'py>(
     let dirs = [("wi", wi, Kind::Direction), ("wo", wo, Kind::Direction)];
     let (p, channels, all, slot) = call(layers, ext_ior, model, dirs, options, inputs, &mut arrays)?;
     if all.len() == 2 {
-        if let Some(f) = engine_f32(py, wi, wo, channels, |wi, wo, out| p.eval_f32(wi, wo, out))? {
+        if let Some(f) = engine_f32(py, wi, wo, channels, |wi, wo, out| p.eval_f32(wi, wo, None, out))? {
             return Ok(f);
         }
     }

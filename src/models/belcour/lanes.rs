@@ -5,6 +5,7 @@
 use super::table::LobeTable;
 use super::Prepared;
 use crate::engine::{self, Floats, Mask, Rows, LANES, V3};
+use crate::models::FitLanes;
 use crate::optics::distribution::{G2Form, MIN_ALPHA};
 use crate::optics::lanes::{ggx_reflection, Ggx};
 use crate::tables::node_lanes;
@@ -119,14 +120,14 @@ pub(super) struct Lanes<'a> {
 }
 
 /// f of float32 rows by the lanes, if the stack has a float32 table and a Smith G2 (module comment).
-pub(super) fn eval(p: &Prepared, wi: Rows, wo: Rows, out: &mut [f32]) -> bool {
+pub(super) fn eval(p: &Prepared, wi: Rows, wo: Rows, fit: Option<&FitLanes>, out: &mut [f32]) -> bool {
     let Some(t) = &p.table_f32 else { return false };
     if p.opts.g2 == G2Form::VCavity {
         return false;
     }
     let height_correlated = p.opts.g2 == G2Form::HeightCorrelated;
     let kernel = Lanes { t, channels: p.channels, symmetric: p.opts.symmetric, height_correlated };
-    engine::eval(&kernel, p.channels, wi, wo, out)
+    engine::eval(&kernel, fit, p.channels, wi, wo, out)
 }
 
 impl engine::Kernel for Lanes<'_> {

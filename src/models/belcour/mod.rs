@@ -51,6 +51,7 @@ use super::{Args, InputSpec, Inputs, Model, ModelInfo, OptionSpec, Properties, P
 use crate::bsdf;
 use crate::engine::Rows;
 use crate::error::{value_error, Result};
+use crate::models::FitLanes;
 use crate::optics::distribution::{Distribution, G2Form, Microfacet};
 use crate::stack::{Layer, Stack};
 use adding::{mean, DiffuseBase, Step};
@@ -199,8 +200,8 @@ impl Model for Prepared {
         super::common::block::simd_columns!(Prepared, self, wi, wo, out)
     }
 
-    fn eval_f32(&self, wi: Rows, wo: Rows, out: &mut [f32]) -> bool {
-        lanes::eval(self, wi, wo, out)
+    fn eval_f32(&self, wi: Rows, wo: Rows, fit: Option<&FitLanes>, out: &mut [f32]) -> bool {
+        lanes::eval(self, wi, wo, fit, out)
     }
 
     fn proposals(&self, wo: DVec3) -> Vec<(f64, Proposal)> {

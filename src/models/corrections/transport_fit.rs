@@ -8,13 +8,13 @@
 //! the azimuth, and the energy of the model's own lobes is set by s. The azimuth φ′ (from the mirror plane) is sampled
 //! at φ′ = π t², t at AZIMUTHS midpoints, dense where narrow lobes peak. Evaluation interpolates (s, a) bilinearly in
 //! x = √(1 − cos θ), as the table does. Float32 inputs: the model's own lane kernel, then the fit in lanes
-//! (`Lanes`, an engine correction), where the model has a lane kernel.
+//! (`FitLanes`, an engine correction applied in the model's own pass), where the model has a lane kernel.
 //!
 //! The adding-doubling solver is isotropic: an anisotropic stack is evaluated as the model gives it. The fit is of
 //! the stack as prepared, so per-element inputs (flakes, the patina mask) raise a ValueError with it. The GPU applies
 //! the same fit after the model's own f (gpu/shaders/fit.wgsl, `gpu_values`).
 
-use crate::engine::{self, Floats, Rows, V3};
+use crate::engine::{self, Floats, Rows, LANES, V3};
 use crate::error::{value_error, Result};
 use crate::models::common::block::simd_columns;
 use crate::models::common::mixture::DEFENSIVE;
@@ -22,7 +22,7 @@ use crate::models::tabulated::{self, anisotropic_layer, zenith, zenith_node_lane
 use crate::models::{Inputs, Model, Proposal, BLOCK};
 use crate::stack::Stack;
 use crate::tables::adding_doubling::{Cells, NODES, N_THETA};
-use crate::tables::{bilerp_lanes, node};
+use crate::tables::node;
 use glam::DVec3;
 use rayon::prelude::*;
 use std::f64::consts::PI;
@@ -178,26 +178,35 @@ impl TransportFit {
     }
 }
 
-/// The fit in float32 lanes: s f + a, (s, a) bilinear in the zenith coordinates (`TransportFit::eval_columns`).
-struct Lanes<'a> {
+/// The fit in float32 lanes: s f + a, (s, a) bilinear in the zenith coordinates (`TransportFit::eval_columns`),
+/// applied by the engine in the model's own pass.
+pub struct FitLanes<'a> {
     /// The (s, a) records, flattened: 2 · channels values per (light node, view node).
     fit: &'a [f32],
     channels: usize,
 }
 
-impl engine::Kernel for Lanes<'_> {
-    const CORRECTS: bool = true;
-
+impl engine::Correction for FitLanes<'_> {
     #[inline(always)]
-    fn eval(&self, wi: V3, wo: V3, f: &mut [Floats]) {
+    fn apply(&self, wi: V3, wo: V3, f: &mut [Floats]) {
         let zero = Floats::splat(0.0);
-        let (i, o) = (zenith_node_lanes(wi, NODES), zenith_node_lanes(wo, NODES));
+        let ((i, fi), (o, fo)) = (zenith_node_lanes(wi, NODES), zenith_node_lanes(wo, NODES));
         let above = wi.z.gt(zero) & wo.z.gt(zero);
         let width = 2 * self.channels;
-        for (c, f) in f.iter_mut().enumerate() {
-            let s = bilerp_lanes(self.fit, width, NODES, &i, &o, 2 * c);
-            let a = bilerp_lanes(self.fit, width, NODES, &i, &o, 2 * c + 1);
-            *f = Floats::select(above, s.mul_add(*f, a), *f);
+        // Lane by lane, the four corners' records read whole (s and a of every channel side by side).
+        for l in (0..LANES).filter(|&l| above.0[l] != 0) {
+            let (u, v) = (fi.0[l], fo.0[l]);
+            let at = (i[l] as usize * NODES + o[l] as usize) * width;
+            let corners = [(at, (1.0 - u) * (1.0 - v)), (at + width, (1.0 - u) * v)];
+            let corners =
+                [corners[0], corners[1], (at + NODES * width, u * (1.0 - v)), (at + (NODES + 1) * width, u * v)];
+            for (c, f) in f.iter_mut().enumerate() {
+                let (mut s, mut a) = (0.0f32, 0.0f32);
+                for &(k, w) in &corners {
+                    (s, a) = (self.fit[k + 2 * c].mul_add(w, s), self.fit[k + 2 * c + 1].mul_add(w, a));
+                }
+                f.0[l] = s.mul_add(f.0[l], a);
+            }
         }
     }
 }
@@ -208,9 +217,9 @@ impl Model for TransportFit {
         simd_columns!(TransportFit, self, wi, wo, out)
     }
 
-    fn eval_f32(&self, wi: Rows, wo: Rows, out: &mut [f32]) -> bool {
-        let lanes = Lanes { fit: self.fit.as_flattened(), channels: self.channels };
-        self.model.eval_f32(wi, wo, out) && engine::eval(&lanes, self.channels, wi, wo, out)
+    fn eval_f32(&self, wi: Rows, wo: Rows, _: Option<&FitLanes>, out: &mut [f32]) -> bool {
+        let fit = FitLanes { fit: self.fit.as_flattened(), channels: self.channels };
+        self.model.eval_f32(wi, wo, Some(&fit), out)
     }
 
     fn proposals(&self, wo: DVec3) -> Vec<(f64, Proposal)> {
