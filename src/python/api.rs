@@ -4,6 +4,7 @@
 
 use super::arrays::{batch, batch_blocks, engine_f32, vec3, Kind, MAX_INPUTS};
 use super::interrupt::interruptible;
+use crate::engine::Rows;
 use crate::error::Error;
 use crate::models::common::mixture::{self, weight_factor};
 use crate::models::common::options::microsurface;
@@ -12,6 +13,8 @@ use crate::reference::{self, Exit};
 use crate::sampling::Rng;
 use crate::stack::{Layer, Stack};
 use crate::transport::{ChannelStack, Microsurface};
+use glam::DVec3;
+use numpy::PyReadonlyArrayDyn;
 use pyo3::exceptions::{PyTypeError, PyValueError};
 use pyo3::prelude::*;
 use pyo3::types::{PyBool, PyDict, PyList, PyString};
@@ -354,19 +357,50 @@ pub fn sample_stack<'py>(
     let mut arrays = Vec::new();
     let first = [("wo", wo, Kind::Direction), ("u", u, Kind::Range(3, 0.0, 1.0))];
     let (p, c, all, slot) = call(layers, ext_ior, model, first, options, inputs, &mut arrays)?;
-    batch(py, &all, 3 + c + 1, |r, o| {
-        let wo = vec3(&r[0]);
-        let (wi, pdf) = mixture::sample(&*p, wo, r[1]);
-        o[..3].copy_from_slice(&wi.to_array());
-        if pdf > 0.0 {
-            let row: [Option<[f64; 3]>; models::MAX_INPUTS] =
-                std::array::from_fn(|j| slot.get(j).copied().flatten().map(|k| r[k]));
-            let (weight, tail) = o[3..].split_at_mut(c);
-            models::eval_one(&*p, wi, wo, &row[..slot.len()], weight);
-            weight.iter_mut().for_each(|w| *w *= weight_factor(wi, pdf));
-            tail[0] = pdf;
+    // Float32 rows without per-element inputs: f at the sampled directions by the float32 engine, as `eval` gives it
+    // for float32 directions.
+    let float32 =
+        slot.iter().all(Option::is_none) && [wo, u].iter().all(|a| a.extract::<PyReadonlyArrayDyn<f32>>().is_ok());
+    let k = 3 + c + 1;
+    batch_blocks(py, &all, k, |b, o| {
+        // Block by block: the directions and pdfs row by row, then f of the whole block.
+        let n = b.len;
+        let ([ox, oy, oz], [u0, u1, u2]) = (b.columns(0), b.columns(1));
+        let (mut wi, mut pdf) = ([[0.0; models::BLOCK]; 3], [0.0; models::BLOCK]);
+        for r in 0..n {
+            let (w, density) = mixture::sample(&*p, DVec3::new(ox[r], oy[r], oz[r]), [u0[r], u1[r], u2[r]]);
+            o[r * k..r * k + 3].copy_from_slice(&w.to_array());
+            // A lost sample's f is not needed (weight 0): the normal stands in for its direction, which may be NaN.
+            let w = if density > 0.0 { w } else { DVec3::Z };
+            (wi[0][r], wi[1][r], wi[2][r], pdf[r]) = (w.x, w.y, w.z, density);
+        }
+        let wi = wi.each_ref().map(|c| &c[..n]);
+        let mut f = vec![0.0; n * c];
+        if !(float32 && eval_f32_rows(&*p, wi, b.columns(0), &mut f)) {
+            let mut cols: [Option<[&[f64]; 3]>; MAX_INPUTS] = [None; MAX_INPUTS];
+            for (col, s) in cols.iter_mut().zip(&slot) {
+                *col = s.map(|k| b.columns(k));
+            }
+            f.fill(0.0);
+            p.eval_block(wi, b.columns(0), &cols[..slot.len()], &mut f);
+        }
+        for (r, (o, f)) in o.chunks_exact_mut(k).zip(f.chunks_exact(c)).enumerate() {
+            let factor = weight_factor(DVec3::new(wi[0][r], wi[1][r], wi[2][r]), pdf[r]);
+            o[3..3 + c].iter_mut().zip(f).for_each(|(w, f)| *w = f * factor);
+            o[3 + c] = pdf[r];
         }
     })
+}
+
+/// f of a block's rows (columns of unit directions) by the model's float32 lanes, into `out` as float64; false where
+/// the model has none for them.
+fn eval_f32_rows(p: &dyn models::Model, wi: [&[f64]; 3], wo: [&[f64]; 3], out: &mut [f64]) -> bool {
+    let rows = |w: [&[f64]; 3]| (0..w[0].len()).flat_map(|r| w.map(|c| c[r] as f32)).collect::<Vec<f32>>();
+    let (wi, wo) = (rows(wi), rows(wo));
+    let mut f = vec![0.0f32; out.len()];
+    let ok = p.eval_f32(Rows::Packed(&wi), Rows::Packed(&wo), None, &mut f);
+    out.iter_mut().zip(&f).for_each(|(o, &f)| *o = f as f64);
+    ok
 }
 
 /// The sampling pdf of wi given wo per unit solid angle: (..., 1).
