@@ -1,7 +1,8 @@
 """Fuzzes every analytic model (not a test; `make fuzz`): evaluates at least 1e8 direction pairs per model over random
 stacks that include the extremes (roughness 0, 1e-6 and 1; IORs near 1; thick and strongly scattering slabs) with
 directions that include exactly normal and exactly grazing ones, wi == wo, mirror pairs and float32/float64
-denormal z, under every model option, and counts NaN, Inf and negative values. Writes docs/fuzz.json, which
+denormal z, under every model option, in float64 and float32 (half each: float32 directions take the models' float32
+lanes where they have them), and counts NaN, Inf and negative values. Writes docs/fuzz.json, which
 scripts/reliability.py renders into docs/reliability.md.
 
     python scripts/fuzz.py [--pairs 1e8] [--seed 0]
@@ -42,6 +43,7 @@ OPTION_SETS = {
         {"energy": "fresnel"},
         {"interpolated": False},
         {"g2": "separable"},
+        {"variant": "improved"},
     ],
     "steinberg": [
         {},
@@ -51,6 +53,7 @@ OPTION_SETS = {
         {"clamp_roughness": False},
         {"eta2": False},
         {"g2": "v_cavity"},
+        {"variant": "improved"},
     ],
     "weidlich_wilkie": [
         {},
@@ -59,6 +62,7 @@ OPTION_SETS = {
         {"distribution": "ggx"},
         {"g2": "height_correlated"},
         {"clamp_roughness": False, "eta2": False},
+        {"variant": "improved"},
     ],
     "albedo_scaling": [{}, {"scaling": "view"}, {"g2": "height_correlated"}],
     "tabulated": [{}, {"distribution": "beckmann"}],
@@ -132,7 +136,7 @@ def fuzz_model(model: str, pairs: float, seed: int) -> list[dict]:
     per_variant = int(pairs) // len(variants)
     for v, opts in enumerate(variants):
         rng = np.random.default_rng([seed, v, len(model)])
-        counts = dict(evaluations=0, nan=0, inf=0, negative=0, stacks=0, rejected=0)
+        counts = dict(evaluations=0, float32=0, nan=0, inf=0, negative=0, stacks=0, rejected=0)
         start = time.perf_counter()
         while counts["evaluations"] < per_variant:
             stack = random_stack(rng)
@@ -148,6 +152,7 @@ def fuzz_model(model: str, pairs: float, seed: int) -> list[dict]:
                 wi, wo = directions(rng, BATCH // 2, dtype)
                 f = stack.eval(wi, wo, model, **opts)
                 counts["evaluations"] += len(wi)
+                counts["float32"] += len(wi) if dtype == np.float32 else 0
                 counts["nan"] += int(np.isnan(f).any(axis=-1).sum())
                 counts["inf"] += int(np.isinf(f).any(axis=-1).sum())
                 counts["negative"] += int((f < 0).any(axis=-1).sum())

@@ -527,16 +527,17 @@ def fuzz_section(path: Path = FUZZ) -> List[str]:
     rows, meta = loaded
     lines.append(
         "Random stacks, directions and options from `scripts/fuzz.py` (`make fuzz`); counts of output values "
-        "that are NaN, Inf or negative."
+        "that are NaN, Inf or negative, over float64 and float32 directions (float32 ones take the models' float32 "
+        "lanes where they have them)."
     )
     if meta:
         lines += ["", "; ".join(f"{k}: {v}" for k, v in meta.items()) + "."]
     lines += [
         "",
-        "| model | options | evaluations | NaN | Inf | negative | seconds |",
-        "|---|---|---:|---:|---:|---:|---:|",
+        "| model | options | evaluations | of which float32 | NaN | Inf | negative | seconds |",
+        "|---|---|---:|---:|---:|---:|---:|---:|",
     ]
-    keys = ("evaluations", "nan", "inf", "negative")
+    keys = ("evaluations", "float32", "nan", "inf", "negative")
     totals = dict.fromkeys(keys, 0)
     seconds = 0.0
     for r in rows:

@@ -171,6 +171,25 @@ impl Floats {
         Floats::select(self.gt(Floats::splat(89.0)), Floats::splat(f32::INFINITY), y)
             + map(|i| if self.0[i].is_nan() { f32::NAN } else { 0.0 })
     }
+
+    /// (sin 2πu, cos 2πu) of u in turns, u in [0, 1] (a sampler's azimuth), within 1.5e-7 of the exact values
+    /// (measured: tests below). u = q/4 + r with q the nearest quarter turn (r exact, |r| ≤ 1/8), the Cephes minimax
+    /// polynomials of sin and cos on x = 2πr in [−π/4, π/4], then the quarter turns: (sin, cos)(x + qπ/2).
+    #[inline(always)]
+    pub fn sincos_2pi(self) -> (Floats, Floats) {
+        const SIN: [f32; 3] = [-1.666_665_5e-1, 8.332_161e-3, -1.951_529_6e-4];
+        const COS: [f32; 3] = [4.166_664_6e-2, -1.388_731_6e-3, 2.443_315_7e-5];
+        let q = map(|i| (self.0[i] * 4.0).round_ties_even());
+        let x = (q.mul_add(Floats::splat(-0.25), self)) * std::f32::consts::TAU;
+        let x2 = x * x;
+        let sin = (x * x2).mul_add(x2.poly(&SIN), x);
+        let cos = (x2 * x2).mul_add(x2.poly(&COS), x2.mul_add(Floats::splat(-0.5), Floats::splat(1.0)));
+        // sin(x + kπ/2) = s, c, −s, −c and cos(x + kπ/2) = c, −s, −c, s for k = q mod 4 = 0, 1, 2, 3.
+        let k: [i32; LANES] = std::array::from_fn(|i| q.0[i] as i32 & 3);
+        let sin_k = map(|i| [sin.0[i], cos.0[i], -sin.0[i], -cos.0[i]][k[i] as usize]);
+        let cos_k = map(|i| [cos.0[i], -sin.0[i], -cos.0[i], sin.0[i]][k[i] as usize]);
+        (sin_k, cos_k)
+    }
 }
 
 /// 2^k per lane for integral k (exp's scaling), through the exponent bits.
@@ -254,6 +273,23 @@ mod tests {
             .max()
             .unwrap();
         assert!(worst <= 2, "worst {worst} ulp");
+    }
+
+    #[test]
+    fn sincos_2pi_is_within_1_5e7_of_the_exact_values() {
+        // 2^22 + 1 points over [0, 1] turns (every quadrant and its ends) against float64's sin and cos of the same
+        // float32 u; measured 1.05e-7 at most.
+        let n = 1 << 22;
+        let mut worst = 0.0f64;
+        for chunk in (0..=n).collect::<Vec<u32>>().chunks(LANES) {
+            let u: [f32; LANES] = std::array::from_fn(|l| chunk.get(l).map_or(0.5, |&k| k as f32 / n as f32));
+            let (s, c) = Floats(u).sincos_2pi();
+            for ((&u, s), c) in u.iter().zip(s.0).zip(c.0) {
+                let phi = std::f64::consts::TAU * u as f64;
+                worst = worst.max((s as f64 - phi.sin()).abs()).max((c as f64 - phi.cos()).abs());
+            }
+        }
+        assert!(worst <= 1.5e-7, "{worst}");
     }
 
     #[test]

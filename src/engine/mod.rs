@@ -67,12 +67,75 @@ pub fn eval<K: Kernel, C: Correction>(
     wo: Rows,
     out: &mut [f32],
 ) -> bool {
-    let rows: RowLoop<K, C> = rows_for_cpu::<K, C>();
+    run(&Evaluation { kernel, correction }, channels, wi, wo, out)
+}
+
+/// A model's float32 importance sampling.
+pub trait Sampler: Sync {
+    /// For LANES unit viewing directions wo and uniform numbers u in [0, 1]: wi (out[0..3]), the weight f cos θi / pdf
+    /// per channel and the pdf (the last).
+    fn sample(&self, wo: V3, u: V3, out: &mut [Floats]);
+}
+
+/// `Stack.sample`'s rows (wi, weight per channel, pdf: `width` values) of every (wo[r], u[r]) by `sampler`; false,
+/// with `out` partly written, where a row needs the careful path (a direction as in `eval`, or a u outside [0, 1]).
+pub fn sample<S: Sampler>(sampler: &S, width: usize, wo: Rows, u: Rows, out: &mut [f32]) -> bool {
+    run(&Sampling(sampler), width, wo, u, out)
+}
+
+/// What the row loop computes from a group of LANES rows of its two inputs: false where a lane's input is one it does
+/// not take.
+trait Pass: Sync {
+    fn lanes(&self, a: V3, b: V3, out: &mut [Floats]) -> bool;
+}
+
+/// f by a kernel and its correction, from two directions that the pass normalises.
+struct Evaluation<'a, K, C> {
+    kernel: &'a K,
+    correction: Option<&'a C>,
+}
+
+impl<K: Kernel, C: Correction> Pass for Evaluation<'_, K, C> {
+    #[inline(always)]
+    fn lanes(&self, wi: V3, wo: V3, f: &mut [Floats]) -> bool {
+        let ((wi, ok_i), (wo, ok_o)) = (unit(wi), unit(wo));
+        if (!(ok_i & ok_o)).any() {
+            return false;
+        }
+        self.kernel.eval(wi, wo, f);
+        if let Some(c) = self.correction {
+            c.apply(wi, wo, f);
+        }
+        true
+    }
+}
+
+/// Samples by a sampler, from a direction that the pass normalises and three numbers in [0, 1].
+struct Sampling<'a, S>(&'a S);
+
+impl<S: Sampler> Pass for Sampling<'_, S> {
+    #[inline(always)]
+    fn lanes(&self, wo: V3, u: V3, out: &mut [Floats]) -> bool {
+        let (wo, ok) = unit(wo);
+        let (zero, one) = (Floats::splat(0.0), Floats::splat(1.0));
+        // In [0, 1] (false for NaN).
+        let inside = u.x.ge(zero) & u.x.le(one) & u.y.ge(zero) & u.y.le(one) & u.z.ge(zero) & u.z.le(one);
+        if (!(ok & inside)).any() {
+            return false;
+        }
+        self.0.sample(wo, u, out);
+        true
+    }
+}
+
+/// `pass` over every row of a and b into out (rows of `width` values), in parallel.
+fn run<P: Pass>(pass: &P, width: usize, a: Rows, b: Rows, out: &mut [f32]) -> bool {
+    let rows: RowLoop<P> = rows_for_cpu::<P>();
     let failed = AtomicBool::new(false);
-    out.par_chunks_mut(TASK_ROWS * channels).enumerate().for_each_init(
-        || vec![Floats::splat(0.0); channels],
+    out.par_chunks_mut(TASK_ROWS * width).enumerate().for_each_init(
+        || vec![Floats::splat(0.0); width],
         |scratch, (t, o)| {
-            if !failed.load(Ordering::Relaxed) && !rows(kernel, correction, wi, wo, t * TASK_ROWS, o, scratch) {
+            if !failed.load(Ordering::Relaxed) && !rows(pass, a, b, t * TASK_ROWS, o, scratch) {
                 failed.store(true, Ordering::Relaxed);
             }
         },
@@ -80,19 +143,19 @@ pub fn eval<K: Kernel, C: Correction>(
     !failed.into_inner()
 }
 
-/// A row loop: `rows` for kernel K and correction C, compiled for one instruction set.
-type RowLoop<K, C> = fn(&K, Option<&C>, Rows, Rows, usize, &mut [f32], &mut [Floats]) -> bool;
+/// A row loop: `rows` for pass P, compiled for one instruction set.
+type RowLoop<P> = fn(&P, Rows, Rows, usize, &mut [f32], &mut [Floats]) -> bool;
 
 /// The row loop compiled for this CPU: AVX2 + FMA when it has them, else portable.
-fn rows_for_cpu<K: Kernel, C: Correction>() -> RowLoop<K, C> {
+fn rows_for_cpu<P: Pass>() -> RowLoop<P> {
     #[cfg(target_arch = "x86_64")]
     if has_avx2() {
-        return |k, c, wi, wo, first, out, scratch| {
+        return |p, a, b, first, out, scratch| {
             // SAFETY: the CPU supports every feature the function is compiled for.
-            unsafe { rows_avx2(k, c, wi, wo, first, out, scratch) }
+            unsafe { rows_avx2(p, a, b, first, out, scratch) }
         };
     }
-    rows::<K, C>
+    rows::<P>
 }
 
 /// Whether the CPU has AVX2 and FMA (checked once, then cached by std).
@@ -104,40 +167,19 @@ pub fn has_avx2() -> bool {
 
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2,fma")]
-unsafe fn rows_avx2<K: Kernel, C: Correction>(
-    k: &K,
-    c: Option<&C>,
-    wi: Rows,
-    wo: Rows,
-    first: usize,
-    out: &mut [f32],
-    f: &mut [Floats],
-) -> bool {
-    rows(k, c, wi, wo, first, out, f)
+unsafe fn rows_avx2<P: Pass>(p: &P, a: Rows, b: Rows, first: usize, out: &mut [f32], f: &mut [Floats]) -> bool {
+    rows(p, a, b, first, out, f)
 }
 
-/// Rows first.. of the output slice `out`, LANES at a time; false at the first group with a row the engine does
-/// not take.
+/// Rows first.. of the output slice `out`, LANES at a time; false at the first group with a row the pass does not
+/// take.
 #[inline(always)]
-fn rows<K: Kernel, C: Correction>(
-    k: &K,
-    c: Option<&C>,
-    wi: Rows,
-    wo: Rows,
-    first: usize,
-    out: &mut [f32],
-    f: &mut [Floats],
-) -> bool {
+fn rows<P: Pass>(p: &P, a: Rows, b: Rows, first: usize, out: &mut [f32], f: &mut [Floats]) -> bool {
     let channels = f.len();
     for (g, o) in out.chunks_mut(LANES * channels).enumerate() {
         let (r, m) = (first + g * LANES, o.len() / channels);
-        let ((wi, ok_i), (wo, ok_o)) = (unit(load(wi, r, m)), unit(load(wo, r, m)));
-        if (!(ok_i & ok_o)).any() {
+        if !p.lanes(load(a, r, m), load(b, r, m), f) {
             return false;
-        }
-        k.eval(wi, wo, f);
-        if let Some(c) = c {
-            c.apply(wi, wo, f);
         }
         // Clamped to the largest finite float32, as the float64 path's float32 output is: a grazing mirror pair with
         // a denormal zenith can reach 1e41.
@@ -236,7 +278,8 @@ pub mod tests {
         let n = wi.len() / 3;
         let (mut a, mut b) = (vec![0.0; n * channels], vec![0.0; n * channels]);
         let mut f = vec![Floats::splat(0.0); channels];
-        assert!(rows(k, None::<&()>, Rows::Packed(wi), Rows::Packed(wo), 0, &mut a, &mut f));
+        let pass = Evaluation { kernel: k, correction: None::<&()> };
+        assert!(rows(&pass, Rows::Packed(wi), Rows::Packed(wo), 0, &mut a, &mut f));
         assert!(eval(k, None::<&()>, channels, Rows::Packed(wi), Rows::Packed(wo), &mut b));
         (a, b)
     }

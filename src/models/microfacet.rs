@@ -135,6 +135,16 @@ impl Model for Prepared {
         }
     }
 
+    fn sample_f32(&self, wo: Rows, u: Rows, out: &mut [f32]) -> bool {
+        match self {
+            Prepared::Conductor { mf, g2, fresnel, eta, k } => Ggx::new(mf, *g2).is_some_and(|ggx| {
+                let ior = eta.iter().zip(k).map(|(&e, &k)| ConductorIor::new(*fresnel, e, k)).collect();
+                engine::sample(&ConductorLanes { ggx, ior }, 3 + eta.len() + 1, wo, u, out)
+            }),
+            _ => false,
+        }
+    }
+
     fn proposals(&self, _wo: DVec3) -> Vec<(f64, Proposal)> {
         match self {
             Prepared::Conductor { mf, .. } if mf.is_smooth() => vec![],
@@ -213,6 +223,27 @@ impl engine::Kernel for ConductorLanes {
         for (o, ior) in out.iter_mut().zip(&self.ior) {
             *o = geo * lanes::conductor(cos_h, ior);
         }
+    }
+}
+
+/// The rough conductor's importance sampling in lanes (`mixture::sample` of its one reflection lobe): wi through the
+/// visible normals, the weight f cos θi / pdf from the kernel's own f, and the pdf; a wo below the horizon samples
+/// the normal with pdf 0, and a wi below it has weight and pdf 0, as the float64 sampler's.
+impl engine::Sampler for ConductorLanes {
+    #[inline(always)]
+    fn sample(&self, wo: V3, u: V3, out: &mut [Floats]) {
+        use engine::Kernel;
+        let (zero, one) = (Floats::splat(0.0), Floats::splat(1.0));
+        let (wi, pdf) = lanes::ggx_sample_reflection(&self.ggx, wo, u.y, u.z);
+        let above = wo.z.gt(zero);
+        let kept = above & wi.z.gt(zero) & pdf.gt(zero);
+        let (head, rest) = out.split_at_mut(3);
+        let (weight, tail) = rest.split_at_mut(self.ior.len());
+        self.eval(wi, wo, weight);
+        let factor = Floats::and(kept, wi.z / pdf);
+        weight.iter_mut().for_each(|w| *w = *w * factor);
+        tail[0] = Floats::and(kept, pdf);
+        head.copy_from_slice(&[Floats::and(above, wi.x), Floats::and(above, wi.y), Floats::select(above, wi.z, one)]);
     }
 }
 

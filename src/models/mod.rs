@@ -136,6 +136,13 @@ pub trait Model: Send + Sync {
         false
     }
 
+    /// `Stack.sample`'s rows (wi, weight per channel, pdf) of float32 viewing directions and uniform numbers by the
+    /// float32 engine, where the model has a lane sampler (the same lobe and direction as `mixture::sample` from the
+    /// same u, to float32); false sends the call to the float64 sampler.
+    fn sample_f32(&self, _wo: Rows, _u: Rows, _out: &mut [f32]) -> bool {
+        false
+    }
+
     /// The model's transport_fit correction, if it has one (what the GPU applies after the model's own f).
     fn transport_fit(&self) -> Option<&corrections::transport_fit::TransportFit> {
         None

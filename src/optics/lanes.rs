@@ -201,6 +201,46 @@ pub fn ggx_reflection(g: &Ggx, wi: V3, wo: V3) -> (Floats, Floats) {
     (Floats::and(above, geo), cos_h)
 }
 
+/// A reflected direction wi sampled for wo (unit, above the surface) through GGX's visible normals from two uniform
+/// numbers (Microfacet::sample_visible: Heitz 2018, listing 1), and its pdf per unit solid angle, D_wo(m) / (4 wo·m)
+/// = D(m) / (2 (cos θo + σo)) (Walter et al. 2007 eq. 14; D_wo = G1 (wo·m) D / cos θo, Heitz 2018 eq. 3, with
+/// G1 = 2 cos θo / (cos θo + σo)).
+#[inline(always)]
+pub fn ggx_sample_reflection(g: &Ggx, wo: V3, u1: Floats, u2: Floats) -> (V3, Floats) {
+    let (zero, one) = (Floats::splat(0.0), Floats::splat(1.0));
+    let v = match g.frame {
+        Some((c, s)) => wo.rotate(c, s),
+        None => wo,
+    };
+    let (ax, ay) = (g.ax2.sqrt(), g.ay2.sqrt());
+    let vh = V3 { x: ax * v.x, y: ay * v.y, z: v.z };
+    let vh = vh.scale(1.0 / vh.dot(vh).sqrt());
+    // The orthonormal basis (t1, t2, vh); t1 = x̂ where vh is the normal.
+    let len2 = vh.x.mul_add(vh.x, vh.y * vh.y);
+    let has = len2.gt(zero);
+    let inv = 1.0 / len2.sqrt();
+    let t1 = V3 { x: Floats::select(has, -vh.y * inv, one), y: Floats::and(has, vh.x * inv), z: zero };
+    let t2 = V3 { x: -(vh.z * t1.y), y: vh.z * t1.x, z: vh.x.mul_add(t1.y, -(vh.y * t1.x)) };
+    let r = u1.sqrt();
+    let (sin, cos) = u2.sincos_2pi();
+    let p1 = r * cos;
+    let s = 0.5 * (1.0 + vh.z);
+    let p2 = (1.0 - s) * (1.0 - p1 * p1).max(zero).sqrt() + s * r * sin;
+    let n = (1.0 - p1 * p1 - p2 * p2).max(zero).sqrt();
+    let nh = V3 { x: p1 * t1.x + p2 * t2.x + n * vh.x, y: p1 * t1.y + p2 * t2.y + n * vh.y, z: p2 * t2.z + n * vh.z };
+    let m = V3 { x: ax * nh.x, y: ay * nh.y, z: nh.z.max(zero) };
+    let m = m.scale(1.0 / m.dot(m).sqrt());
+    // D(m) = 1 / (π αx αy (mx²/αx² + my²/αy² + mz²)²).
+    let q = (m.x * m.x).mul_add(g.inv_ax2, (m.y * m.y).mul_add(g.inv_ay2, m.z * m.z));
+    let pdf = g.norm / (q * q * 2.0 * (v.z + smith_sigma(g, v)));
+    let wi = (m.scale(2.0 * v.dot(m))).plus(v.scale(Floats::splat(-1.0)));
+    let wi = match g.frame {
+        Some((c, s)) => wi.rotate(c, -s),
+        None => wi,
+    };
+    (wi, pdf)
+}
+
 /// Dielectric transmittance 1 − F at cos θ ≥ 0 (fresnel::dielectric_transmittance), without cancellation at grazing
 /// incidence: 2η cos θ cos θt (1 / (cos θ + η cos θt)² + 1 / (η cos θ + cos θt)²); 0 under total internal reflection.
 #[inline(always)]

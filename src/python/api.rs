@@ -357,6 +357,11 @@ pub fn sample_stack<'py>(
     let mut arrays = Vec::new();
     let first = [("wo", wo, Kind::Direction), ("u", u, Kind::Range(3, 0.0, 1.0))];
     let (p, c, all, slot) = call(layers, ext_ior, model, first, options, inputs, &mut arrays)?;
+    if all.len() == 2 {
+        if let Some(rows) = engine_f32(py, wo, u, 3 + c + 1, |wo, u, out| p.sample_f32(wo, u, out))? {
+            return Ok(rows);
+        }
+    }
     // Float32 rows without per-element inputs: f at the sampled directions by the float32 engine, as `eval` gives it
     // for float32 directions.
     let float32 =
