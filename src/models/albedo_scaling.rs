@@ -29,7 +29,7 @@ use super::common::block::eval_rows;
 use super::common::mixture::defensive_mixture;
 use super::common::options::{choice, flag, g2};
 use super::common::single_pass::{self, beer_lambert, refracted_up, SpInterface, SpLayer};
-use super::common::walk_lanes;
+use super::common::walk_lanes::{self, MAX_CHANNELS};
 use super::{Args, InputSpec, Inputs, Model, ModelInfo, OptionSpec, Properties, Proposal};
 use crate::bsdf;
 use crate::engine::{self, Floats, Rows, V3};
@@ -215,9 +215,6 @@ impl Prepared {
         out
     }
 }
-
-/// Channels the lanes carry at the most: more (spectral stacks) run on the float64 path.
-const MAX_CHANNELS: usize = 8;
 
 /// An interface as the lanes take it.
 enum LaneInterface {
