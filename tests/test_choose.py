@@ -9,15 +9,22 @@ from __future__ import annotations
 
 import collections
 import os
+import sys
+from pathlib import Path
 
 import lamina
 import numpy as np
 import pytest
 from lamina import Dielectric, Diffuse, Stack, atlas
-from lamina.choose import REFERENCE_SAMPLES, _data
+from lamina.choose import CANDIDATES, EVALUATIONS, REFERENCE_SAMPLES, _data
 from lamina.materials import metal
+from lamina.reference import cached_reference, suite_directions
 
 HELD_OUT = 100
+#: Each candidate label's (model, options).
+MODEL_OF = {label: (model, options) for label, model, options in CANDIDATES}
+#: Stacks of scripts/population.py's out-of-distribution set measured here (its named six first).
+OOD_TESTED = 20
 
 
 @pytest.fixture(scope="module")
@@ -66,14 +73,63 @@ def _candidates(choice):
         if label.startswith("reference"):
             out.append((label, "reference", {"samples": int(label.split()[1])}, cost))
         else:
-            out.append((label, label, {}, cost))
+            out.append((label, *MODEL_OF[label], cost))
     return out
 
 
 def _same(label: str, choice) -> bool:
     if choice.model == "reference":
         return label == f"reference, {choice.options['samples']} paths"
-    return label == choice.model
+    return label in MODEL_OF and MODEL_OF[label] == (choice.model, choice.options)
+
+
+@pytest.fixture(scope="module")
+def out_of_distribution(tmp_path_factory):
+    """[(name, stack, lobe error of each model choice, noise per θi)] of the first OOD_TESTED stacks of
+    scripts/population.py's out-of-distribution set, their references (8000 paths per pair on the suite grid)
+    computed afresh in a temporary cache."""
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "scripts"))
+    import population
+
+    old = os.environ.get("LAMINA_CACHE")
+    os.environ["LAMINA_CACHE"] = str(tmp_path_factory.mktemp("ood-cache"))
+    try:
+        wi, wo = suite_directions()
+        out = []
+        for name, stack in population.ood_stacks()[:OOD_TESTED]:
+            f_ref, se = cached_reference(stack, wi, wo, samples=atlas.GROUND_TRUTH_SAMPLES, seed=0, progress=False)
+            out.append((name, stack, f_ref, se.sum(axis=(1, 2)) / np.abs(f_ref).sum(axis=(1, 2))))
+        return out
+    finally:
+        if old is None:
+            del os.environ["LAMINA_CACHE"]
+        else:
+            os.environ["LAMINA_CACHE"] = old
+
+
+@pytest.mark.parametrize("tolerance", [0.05, 0.1, 0.2])
+def test_choose_on_stacks_from_another_distribution(out_of_distribution, tolerance):
+    """The issue's goal on stacks drawn from another distribution than the training one (the six stacks on which
+    `choose` was overconfident, and random ones of wider ranges): the chosen model's measured error within 1.25x
+    the tolerance in >= 90% of those the reference resolves. Outside the population `choose` checks against the
+    tabulated solve or keeps to exact answers; docs/choose.md measures the whole set."""
+    wi, wo = suite_directions()
+    low = np.array(lamina.reference.SUITE_THETAS) <= 80.0
+    met, checked = [], 0
+    for name, stack, f_ref, noise in out_of_distribution:
+        if noise[low].max() > atlas.MAX_NOISE:
+            continue  # the reference does not resolve its lobes: no measurement
+        c = lamina.choose(stack, tolerance)
+        checked += c.checked
+        if c.model == "reference":
+            scale = np.sqrt(atlas.GROUND_TRUTH_SAMPLES / c.options["samples"])
+            err = np.sqrt(2 / np.pi) * noise[low].mean() * scale
+        else:
+            err = atlas.lobe_errors(stack.eval(wi, wo, c.model, **c.options), f_ref)[low].mean()
+        met.append((name, c.model, err, err <= 1.25 * tolerance))
+    assert len(met) >= 14 and checked >= 2  # measured: 18 resolved, 2 of them outside the population and checked
+    share = np.mean([m[3] for m in met])
+    assert share >= 0.9, f"within 1.25x {tolerance} on {share:.0%} of {len(met)}: {[m for m in met if not m[3]]}"
 
 
 def test_choose_picks_the_exact_model_for_a_single_interface():
@@ -82,12 +138,21 @@ def test_choose_picks_the_exact_model_for_a_single_interface():
     assert c.predicted_error < 0.05 and "microfacet" in c.reason
 
 
-def test_choose_falls_back_to_the_reference_where_every_model_fails():
-    """A scattering slab: every analytic model's lobe error is about 0.9 (docs/validation.md)."""
-    c = lamina.choose(lamina.materials.suite("scattering-slab"), 0.05)
-    assert c.model == "reference" and c.options["samples"] in REFERENCE_SAMPLES
-    assert c.predicted_error <= 0.05
+def test_a_scattering_slab_gets_the_tabulated_solve_or_the_reference():
+    """A scattering slab: every single-pass model's lobe error is about 0.9 (docs/validation.md); the tabulated solve
+    (1.1%) meets 0.05 where its precomputation (1.35 s measured) is spread over many evaluations, and the reference
+    (4096 paths: 6 ms per evaluation) where it is spread over a hundred."""
+    slab = lamina.materials.suite("scattering-slab")
+    c = lamina.choose(slab, 0.05)
+    assert c.model == "tabulated" and c.predicted_error <= 0.05
     assert all(err > 0.05 for label, err, cost in c.candidates if cost < c.cost_ns)
+    few = lamina.choose(slab, 0.05, evaluations=100)
+    assert few.model == "reference" and few.options["samples"] in REFERENCE_SAMPLES
+    costs = _data()["costs"]["tabulated"]
+    tabulated = {label: cost for label, _, cost in few.candidates}["tabulated"]
+    assert tabulated == pytest.approx(costs["ns_per_eval"] + 1e6 * costs["prepare_ms"] / 100)
+    assert tabulated > few.cost_ns
+    assert c.cost_ns == pytest.approx(costs["ns_per_eval"] + 1e6 * costs["prepare_ms"] / EVALUATIONS)
 
 
 def test_choose_accounts_for_the_directions():
@@ -116,6 +181,9 @@ def test_choose_rejects_bad_input():
             lamina.choose(stack, bad)
     with pytest.raises(ValueError, match="wi"):
         lamina.choose(stack, 0.1, wi=[np.nan, 0.0, 1.0])
+    for bad in (0, -5, np.nan, "many", True):
+        with pytest.raises(ValueError, match="evaluations"):
+            lamina.choose(stack, 0.1, evaluations=bad)
     with pytest.raises(TypeError, match="tolerance"):
         stack.eval([0, 0, 1.0], [0, 0, 1.0], "belcour", tolerance=0.1)
 

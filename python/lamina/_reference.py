@@ -33,6 +33,11 @@ def suite_directions() -> tuple[np.ndarray, np.ndarray]:
     return wi, wo
 
 
+def lobe_errors(f: np.ndarray, f_ref: np.ndarray) -> np.ndarray:
+    """Relative L1 lobe error per θi row: Σ|f − f_ref| / Σ|f_ref| over directions and channels."""
+    return np.abs(f - f_ref).sum(axis=(1, 2)) / np.maximum(np.abs(f_ref).sum(axis=(1, 2)), 1e-300)
+
+
 def _progress(total: int, progress):
     if progress is False or (progress is None and total < 4 * CHUNK):
         return None

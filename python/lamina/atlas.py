@@ -16,6 +16,7 @@ import time
 
 import numpy as np
 
+from ._reference import lobe_errors
 from .choose import CANDIDATES, features
 from .layers import Dielectric
 from .reference import SUITE_THETAS, cached_reference, reference_albedo, suite_directions
@@ -54,11 +55,6 @@ def candidate_error(row: dict, label: str, model: str, options: dict, ground_tru
         return float(np.sqrt(2 / np.pi) * np.mean(np.array(row["noise"])[low]) * scale)
     e = row["lobe_error"][label]
     return np.inf if e is None else float(np.mean(np.array(e)[low]))
-
-
-def lobe_errors(f: np.ndarray, f_ref: np.ndarray) -> np.ndarray:
-    """Relative L1 lobe error per θi row: Σ|f − f_ref| / Σ|f_ref| over directions and channels."""
-    return np.abs(f - f_ref).sum(axis=(1, 2)) / np.maximum(np.abs(f_ref).sum(axis=(1, 2)), 1e-300)
 
 
 def measure(stack, candidates=CANDIDATES, samples: int = GROUND_TRUTH_SAMPLES, seed: int = 0) -> dict:

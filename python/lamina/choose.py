@@ -1,13 +1,24 @@
 """Model no more than a scene needs: `choose` picks the cheapest model whose predicted lobe error for a stack stays
 within a tolerance, and `features` describes a stack for that prediction.
 
-The prediction is a k-nearest-neighbour quantile over measured data (python/lamina/data/choose.json, written by
-`make population` from the seed-1 population of lamina.materials.population): each stack is a point in the weighted,
-standardized feature space of `features`, and a candidate's predicted error at θi is a quantile of its measured
-errors on the k nearest measured stacks that the model represents (linear in θi between the measured angles; `rank`).
-The feature weights, k and the quantiles are fitted by leave-one-out on the seed-1 stacks (scripts/population.py).
-No reference runs inside `choose`.
-docs/choose.md validates it on the seed-2 population, which the predictor never saw."""
+The candidates are every analytic model, the improved variants, `tabulated` and the reference at several path
+counts; a candidate's cost is its measured time per evaluation plus its precomputation spread over the evaluations
+the user will make (`evaluations`).
+
+Inside the measured population the prediction is a k-nearest-neighbour quantile over measured data
+(python/lamina/data/choose.json, written by `make population` from the seed-1 population of
+lamina.materials.population): each stack is a point in the weighted, standardized feature space of `features`, and a
+candidate's predicted error at θi is a quantile of its measured errors on the k nearest measured stacks that the
+model represents (linear in θi between the measured angles; `rank`). The feature weights, k and the quantiles are
+fitted by leave-one-out on the seed-1 stacks (scripts/population.py).
+
+Outside it (`covered`) the neighbours say nothing, so `choose` checks instead of guessing (`check`): where
+`tabulated` represents the stack and resolves its lobes, every candidate is evaluated on the suite's direction grid
+against the tabulated solve (seconds, once per stack), and its predicted error is that distance plus tabulated's own
+error bound (the triangle inequality; `TABULATED_QUANTILE` of tabulated's measured errors); elsewhere only exact
+answers remain (the reference, `microfacet` where it applies), with the reference's noise taken at its largest over
+the training stacks. No reference runs inside `choose`. docs/choose.md validates it on the seed-2 population, which
+the predictor never saw, and on stacks drawn from other distributions."""
 
 from __future__ import annotations
 
@@ -18,14 +29,28 @@ from pathlib import Path
 
 import numpy as np
 
-#: The analytic candidates, cheapest first by the measured costs in choose.json: (label, model, options).
+from ._reference import lobe_errors, suite_directions
+
+#: The analytic candidates: (label, model, options).
 CANDIDATES = (
     ("microfacet", "microfacet", {}),
     ("belcour", "belcour", {}),
     ("weidlich_wilkie", "weidlich_wilkie", {}),
     ("steinberg", "steinberg", {}),
     ("albedo_scaling", "albedo_scaling", {}),
+    ("belcour improved", "belcour", {"variant": "improved"}),
+    ("steinberg improved", "steinberg", {"variant": "improved"}),
+    ("weidlich_wilkie improved", "weidlich_wilkie", {"variant": "improved"}),
+    ("tabulated", "tabulated", {}),
 )
+#: The evaluations a choice's precomputation is spread over when the caller does not say (a 1024² image at about 10
+#: samples per pixel).
+EVALUATIONS = 10_000_000
+#: The quantile of tabulated's measured errors on the training stacks that bounds its error in a `check`.
+TABULATED_QUANTILE = 0.95
+#: Roughness below which a lobe is narrower than tabulated's grid resolves (docs/validation.md: its population errors
+#: of 4.5–9.4% are all of lobes with α ≤ 0.06 seen through a smooth coat); a `check` does not trust tabulated there.
+SHARP_ALPHA = 0.07
 #: Paths per pair of the reference candidates, the fallback when no analytic model is predicted within tolerance.
 REFERENCE_SAMPLES = (64, 256, 1024, 4096, 16384, 65536)
 #: Names of `features`' entries.
@@ -75,7 +100,8 @@ def features(stack) -> np.ndarray:
 @dataclass(frozen=True)
 class Choice:
     """What `choose` picked: evaluate with `stack.eval(wi, wo, choice.model, **choice.options)`. `candidates` lists
-    every candidate as (label, predicted error, cost in ns per evaluation), cheapest first."""
+    every candidate as (label, predicted error, cost in ns per evaluation with its precomputation spread over the
+    evaluations), cheapest first; `checked` says whether the errors were checked against the tabulated solve."""
 
     model: str
     options: dict
@@ -83,6 +109,7 @@ class Choice:
     cost_ns: float
     reason: str
     candidates: tuple = field(repr=False)
+    checked: bool = False
 
 
 def prepare(d: dict) -> dict:
@@ -99,6 +126,8 @@ def prepare(d: dict) -> dict:
         for label, _, _ in CANDIDATES
     }
     d["noise"] = np.array([r["noise"] for r in d["train"]]) * np.sqrt(d["ground_truth_samples"])
+    tab = d["errors"]["tabulated"]
+    d["tabulated_bound"] = np.quantile(tab[np.isfinite(tab[:, 0])], TABULATED_QUANTILE, axis=0)
     return d
 
 
@@ -125,14 +154,29 @@ def distances(d: dict, x: np.ndarray) -> np.ndarray:
     return np.sqrt((((x[..., None, :] - d["x"]) / d["scale"]) ** 2).sum(axis=-1))
 
 
-def rank(d: dict, dist: np.ndarray, represents: dict, w: np.ndarray, inside: bool) -> list:
+def cost(d: dict, label: str, evaluations: float) -> float:
+    """A candidate's cost in ns per evaluation: its measured time per evaluation and its first call (the
+    precomputation: tables, the adding-doubling solve) spread over `evaluations`."""
+    c = d["costs"][label]
+    return c["ns_per_eval"] + 1e6 * c["prepare_ms"] / evaluations
+
+
+def rank(
+    d: dict,
+    dist: np.ndarray,
+    represents: dict,
+    w: np.ndarray,
+    inside: bool,
+    evaluations: float = EVALUATIONS,
+    checked: dict | None = None,
+) -> list:
     """Every candidate as (label, model, options, predicted error, cost ns), cheapest first, for a stack at
     distances `dist` from the training stacks: inf where the model cannot represent it (`represents[label]` false);
-    0 for "microfacet" where it can (it is exact there); else the d["quantile"] of the errors of the d["k"] nearest
-    training stacks the model represents, averaged over the angles with weights `w`. The reference at n paths:
-    √(2/π) times the d["noise_quantile"] of the k nearest stacks' noise for one path, over √n. A stack not `inside`
-    the measured population (`covered`) gets no prediction (inf) from the approximate models, so that only exact
-    answers remain."""
+    0 for "microfacet" where it can (it is exact there); the per-angle errors `checked[label]` (`check`) averaged
+    with weights `w` where given; else, `inside` the measured population (`covered`), the d["quantile"] of the errors
+    of the d["k"] nearest training stacks the model represents, averaged over the angles with weights `w`; else no
+    prediction (inf). The reference at n paths: √(2/π) times the d["noise_quantile"] of the k nearest stacks' noise
+    for one path (outside the population: the largest over the training stacks), over √n."""
     k = d["k"]
     near = np.argsort(dist, kind="stable")[:k]
     rows = []
@@ -142,19 +186,56 @@ def rank(d: dict, dist: np.ndarray, represents: dict, w: np.ndarray, inside: boo
             err = np.inf
         elif model == "microfacet":
             err = 0.0
+        elif checked is not None:
+            err = float(np.asarray(checked[label]) @ w)
         elif not inside or not known.any():
             err = np.inf
         else:
             mine = np.argsort(np.where(known, dist, np.inf), kind="stable")[: min(k, known.sum())]
             err = float(np.quantile(d["errors"][label][mine], d["quantile"], axis=0) @ w)
-        rows.append((label, model, options, err, d["costs"][label]["ns_per_eval"]))
-    noise = float(np.quantile(d["noise"][near], d["noise_quantile"], axis=0) @ w)
+        rows.append((label, model, options, err, cost(d, label, evaluations)))
+    noise_one_path = np.quantile(d["noise"][near], d["noise_quantile"], axis=0) if inside else d["noise"].max(axis=0)
+    noise = float(noise_one_path @ w)
     for n in d["reference_samples"]:
         err = np.sqrt(2 / np.pi) * noise / np.sqrt(n)
         rows.append(
             (f"reference, {n} paths", "reference", {"samples": n}, err, n * d["costs"]["reference"]["ns_per_path"])
         )
     return sorted(rows, key=lambda r: r[4])
+
+
+def resolves(stack) -> bool:
+    """Whether tabulated represents the stack (isotropic, no `_dirac_chain`) and its grid resolves the stack's lobes
+    (no rough interface sharper than SHARP_ALPHA)."""
+    layers = stack._resolve(None)
+    sharp = any(0 < x["roughness"][0] < SHARP_ALPHA for x in layers if x["kind"] != "diffuse")
+    return _isotropic(stack) and not _dirac_chain(stack) and not sharp
+
+
+def check(stack, bound: np.ndarray, represents: dict) -> dict | None:
+    """Per candidate label, the per-angle error bound of a quick check against the tabulated solve (None where
+    tabulated does not `resolves` the stack): the candidate's lobe error against tabulated on the suite's direction
+    grid (the measured population's grid) plus `bound`, tabulated's own error per angle; `bound` alone for tabulated;
+    inf where the candidate cannot represent the stack."""
+    if not resolves(stack):
+        return None
+    return _check(repr(stack), stack, tuple(bound), tuple(sorted(represents.items())))
+
+
+@lru_cache(maxsize=64)
+def _check(key: str, stack, bound: tuple, represents: tuple) -> dict:
+    wi, wo = suite_directions()
+    f_tab = stack.eval(wi, wo, "tabulated")
+    can = dict(represents)
+    out = {}
+    for label, model, options in CANDIDATES:
+        if not can[label]:
+            out[label] = np.full(len(bound), np.inf)
+        elif label == "tabulated":
+            out[label] = np.array(bound)
+        else:
+            out[label] = lobe_errors(stack.eval(wi, wo, model, **options), f_tab) + np.array(bound)
+    return out
 
 
 def _weights(thetas, wi) -> np.ndarray:
@@ -173,52 +254,94 @@ def _weights(thetas, wi) -> np.ndarray:
 
 
 def represents(stack) -> dict:
-    """Per candidate label, whether its model accepts the stack (models refuse what they cannot represent)."""
+    """Per candidate label, whether its model accepts the stack (the published models refuse what they cannot
+    represent: tried on one pair). Without preparing what takes seconds: an improved variant represents what its
+    published model does, and tabulated every isotropic stack (its one refusal)."""
     out = {}
     for label, model, options in CANDIDATES:
-        try:
-            stack.eval([0.0, 0.0, 1.0], [0.0, 0.0, 1.0], model, **options)
-            out[label] = True
-        except ValueError:
-            out[label] = False
+        if label == "tabulated":
+            out[label] = _isotropic(stack) and not _dirac_chain(stack)
+        elif options.get("variant") == "improved":
+            out[label] = out[model] and not _dirac_chain(stack)
+        else:
+            try:
+                stack.eval([0.0, 0.0, 1.0], [0.0, 0.0, 1.0], model, **options)
+                out[label] = True
+            except ValueError:
+                out[label] = False
     return out
 
 
-def choose(stack, tolerance: float = 0.05, wi=None) -> Choice:
-    """The cheapest model (by measured cost per evaluation) whose predicted relative L1 lobe error for `stack` stays
-    within `tolerance`, averaged over the incident directions `wi` (..., 3), or over θi ≤ 80° when wi is None.
-    Falls back to the reference with enough paths per pair when no analytic model is predicted within tolerance.
-    The prediction: see the module docstring; docs/choose.md measures how often it holds."""
+def _dirac_chain(stack) -> bool:
+    """Whether a smooth interface lies under a smooth top with only smooth interfaces between: its mirror reflection
+    leaves the stack as a Dirac lobe, which the adding-doubling table blurs into its cells instead of leaving it out of
+    f (measured: 140–390% lobe error at θi where the mirror direction meets the grid; the improved variants, fitted to
+    that table, inherit it). `choose` does not offer tabulated or the improved variants there."""
+    smooth = 0
+    for x in stack._resolve(None):
+        if x["kind"] == "diffuse" or max(x["roughness"]) > 0:
+            break
+        smooth += 1
+        if x["kind"] == "conductor":
+            break
+    return smooth >= 2
+
+
+def _isotropic(stack) -> bool:
+    """Whether every rough layer of the stack has one roughness (αx = αy)."""
+    return all(x["roughness"][0] == x["roughness"][1] for x in stack._resolve(None) if x["kind"] != "diffuse")
+
+
+def choose(stack, tolerance: float = 0.05, wi=None, evaluations: float = EVALUATIONS) -> Choice:
+    """The cheapest model whose predicted relative L1 lobe error for `stack` stays within `tolerance`, averaged over
+    the incident directions `wi` (..., 3), or over θi ≤ 80° when wi is None. The cost of a candidate is its measured
+    time per evaluation plus its precomputation spread over `evaluations` (default EVALUATIONS). Falls back to the
+    reference with enough paths per pair when no analytic model is predicted within tolerance. The prediction: see
+    the module docstring (a stack outside the measured population is checked against the tabulated solve, which
+    takes seconds once per stack); docs/choose.md measures how often it holds."""
     if isinstance(tolerance, bool) or not isinstance(tolerance, (int, float)) or not 0.0 < tolerance < 1e3:
         raise ValueError(f"tolerance must be a relative L1 lobe error > 0, got {tolerance!r}")
-    d = _data()
+    if isinstance(evaluations, bool) or not isinstance(evaluations, (int, float)) or not evaluations >= 1:
+        raise ValueError(f"evaluations must be a number of evaluations >= 1, got {evaluations!r}")
+    return choose_with(_data(), stack, tolerance, wi, evaluations)
+
+
+def choose_with(d: dict, stack, tolerance: float, wi=None, evaluations: float = EVALUATIONS) -> Choice:
+    """`choose` from the predictor `d` (`prepare` of choose.json's content)."""
     x = features(stack)
     inside, can = covered(d["x"], x), represents(stack)
-    rows = rank(d, distances(d, x), can, _weights(d["thetas"], wi), inside)
+    checked = None if inside else check(stack, d["tabulated_bound"], can)
+    rows = rank(d, distances(d, x), can, _weights(d["thetas"], wi), inside, evaluations, checked)
     table = tuple((r[0], r[3], r[4]) for r in rows)
     fits = [r for r in rows if r[3] <= tolerance]
-    outside = (
-        "outside the measured population (no measured stack of its base kind and layer count spans its features; "
-        "lamina.choose.covered): no prediction for the approximate models; "
-        if not inside
-        else ""
-    )
+    if inside:
+        outside = ""
+    elif checked is not None:
+        outside = (
+            "outside the measured population (lamina.choose.covered): every candidate checked against the tabulated "
+            "solve on the suite's grid, plus tabulated's own error bound; "
+        )
+    else:
+        outside = (
+            "outside the measured population (no measured stack of its base kind and layer count spans its features; "
+            "lamina.choose.covered), where tabulated does not resolve it: no prediction for the approximate models; "
+        )
     if not fits:
-        label, model, options, err, cost = rows[-1]
+        label, model, options, err, ns = rows[-1]
         reason = f"{outside}no candidate is predicted within {tolerance}; the most accurate is {label}"
     else:
-        label, model, options, err, cost = fits[0]
+        label, model, options, err, ns = fits[0]
 
         def predicted(r) -> str:
             if not np.isinf(r[3]):
                 return f"{r[3]:.3g}"
             return "no prediction" if can.get(r[0], True) else "cannot represent this stack"
 
-        cheaper = [f"{r[0]} ({predicted(r)})" for r in rows if r[4] < cost]
+        cheaper = [f"{r[0]} ({predicted(r)})" for r in rows if r[4] < ns]
         reason = (
             f"{outside}{label} is the cheapest candidate predicted within tolerance {tolerance} "
-            f"({err:.3g} at {cost:.3g} ns)"
+            f"({err:.3g} at {ns:.3g} ns)"
         )
         if cheaper:
             reason += "; cheaper ones are predicted above it: " + ", ".join(cheaper)
-    return Choice(model, dict(options), err, cost, reason, table)
+    return Choice(model, dict(options), err, ns, reason, table, checked is not None)
