@@ -238,9 +238,10 @@ def ood_outcomes(d: dict, rows: list) -> dict:
             continue
         for tol in TOLERANCES:
             c = choose_with(d, stack, tol)
-            label = c.model if c.model != "reference" else f"reference, {c.options['samples']} paths"
-            if c.model != "reference":
-                label = next(lb for lb, m, o in CANDIDATES if m == c.model and o == c.options)
+            if c.model == "reference":
+                label = f"reference, {c.options['samples']} paths"
+            else:
+                label = next(lb for lb, m, o in CANDIDATES if (m, o) == (c.model, c.options))
             err = atlas.candidate_error(r, label, c.model, c.options, gt)
             out[tol].append((label, err <= 1.25 * tol, c.checked, covered(d["x"], np.array(r["features"]))))
     return out

@@ -269,11 +269,15 @@ def test_a_bad_float32_row_raises_what_float64_raises(bad):
     # A row the engine does not take sends the call to the careful path, which names the input and the row.
     wi, wo = _directions(100, 8)
     wi[57] = (bad, 0.0, 0.0) if bad != 0 else (0.0, 0.0, 0.0)
-    stack = lamina.Stack([metal("Au", 0.3)])
+    _same_error_in_both_dtypes(lamina.Stack([metal("Au", 0.3)]).eval, "row 57", wi, wo)
+
+
+def _same_error_in_both_dtypes(call, match: str, *arrays):
+    """call(*arrays) raises a ValueError matching `match`, the same message with float32 and with float64 arrays."""
     messages = []
     for dtype in (np.float32, np.float64):
-        with pytest.raises(ValueError, match="row 57") as e:
-            stack.eval(wi.astype(dtype), wo.astype(dtype))
+        with pytest.raises(ValueError, match=match) as e:
+            call(*(a.astype(dtype) for a in arrays))
         messages.append(str(e.value))
     assert messages[0] == messages[1]
 
@@ -357,9 +361,4 @@ def test_the_float32_sampler_below_the_horizon_and_on_bad_u():
     wi, weight, pdf = stack.sample(wo, u)
     assert (wi[0] == [0, 0, 1]).all() and (weight[0] == 0).all() and pdf[0] == 0 and pdf[1] > 0
     u[1, 2] = 1.5
-    messages = []
-    for dtype in (np.float32, np.float64):
-        with pytest.raises(ValueError, match="u") as e:
-            stack.sample(wo.astype(dtype), u.astype(dtype))
-        messages.append(str(e.value))
-    assert messages[0] == messages[1]
+    _same_error_in_both_dtypes(stack.sample, "u", wo, u)

@@ -37,7 +37,7 @@ use crate::error::Result;
 use crate::models::FitLanes;
 use crate::optics::distribution::{Distribution, G2Form, Microfacet};
 use crate::optics::fresnel::FresnelForm;
-use crate::optics::lanes::{conductor, dielectric, dielectric_transmittance, ConductorIor, Lobe};
+use crate::optics::lanes::{dielectric_transmittance, ConductorIor, Lobe};
 use crate::optics::{diffuse, sin_theta};
 use crate::stack::Stack;
 use crate::tables::{self, fgd, lerp_lanes, node_lanes};
@@ -314,11 +314,7 @@ impl engine::Kernel for Lanes {
             match interface {
                 LaneInterface::Dielectric { lobe, eta, d, depth, unreflected } => {
                     if let Some(lobe) = lobe {
-                        let (geo, cos_h) = lobe.reflection(wi, wo);
-                        let lobe = geo * dielectric(cos_h, *eta);
-                        for (o, w) in out.iter_mut().zip(weight.iter()) {
-                            *o = *o + Floats::and(alive, *w * lobe);
-                        }
+                        walk_lanes::add_dielectric_lobe(out, weight, alive, lobe, *eta, wi, wo);
                     }
                     let d = Floats::splat(*d);
                     let (down_i, down_o) = (walk_lanes::refracted_up(wi, d), walk_lanes::refracted_up(wo, d));
@@ -335,10 +331,7 @@ impl engine::Kernel for Lanes {
                 }
                 LaneInterface::Conductor { lobe, ior } => {
                     if let Some(lobe) = lobe {
-                        let (geo, cos_h) = lobe.reflection(wi, wo);
-                        for ((o, w), ior) in out.iter_mut().zip(weight.iter()).zip(ior) {
-                            *o = *o + Floats::and(alive, *w * geo * conductor(cos_h, ior));
-                        }
+                        walk_lanes::add_conductor_lobe(out, weight, alive, lobe, ior, wi, wo);
                     }
                     return;
                 }

@@ -126,23 +126,11 @@ impl Model for Prepared {
     }
 
     fn eval_f32(&self, wi: Rows, wo: Rows, fit: Option<&FitLanes>, out: &mut [f32]) -> bool {
-        match self {
-            Prepared::Conductor { mf, g2, fresnel, eta, k } => Ggx::new(mf, *g2).is_some_and(|ggx| {
-                let ior = eta.iter().zip(k).map(|(&e, &k)| ConductorIor::new(*fresnel, e, k)).collect();
-                engine::eval(&ConductorLanes { ggx, ior }, fit, eta.len(), wi, wo, out)
-            }),
-            _ => false,
-        }
+        self.lanes().is_some_and(|k| engine::eval(&k, fit, k.ior.len(), wi, wo, out))
     }
 
     fn sample_f32(&self, wo: Rows, u: Rows, out: &mut [f32]) -> bool {
-        match self {
-            Prepared::Conductor { mf, g2, fresnel, eta, k } => Ggx::new(mf, *g2).is_some_and(|ggx| {
-                let ior = eta.iter().zip(k).map(|(&e, &k)| ConductorIor::new(*fresnel, e, k)).collect();
-                engine::sample(&ConductorLanes { ggx, ior }, 3 + eta.len() + 1, wo, u, out)
-            }),
-            _ => false,
-        }
+        self.lanes().is_some_and(|k| engine::sample(&k, 3 + k.ior.len() + 1, wo, u, out))
     }
 
     fn proposals(&self, _wo: DVec3) -> Vec<(f64, Proposal)> {
@@ -175,6 +163,13 @@ impl Model for Prepared {
 }
 
 impl Prepared {
+    /// The rough GGX conductor in lanes, where the lanes cover it (Ggx::new).
+    fn lanes(&self) -> Option<ConductorLanes> {
+        let Prepared::Conductor { mf, g2, fresnel, eta, k } = self else { return None };
+        let ior = eta.iter().zip(k).map(|(&e, &k)| ConductorIor::new(*fresnel, e, k)).collect();
+        Some(ConductorLanes { ggx: Ggx::new(mf, *g2)?, ior })
+    }
+
     /// f for a block of columns. The rough conductor runs in two passes, the geometry per row and then the Fresnel
     /// term per channel over the whole block, a branch-free loop that vectorizes.
     #[inline(always)]

@@ -2,7 +2,7 @@
 //! reflection, whatever the model; a model's options and per-element inputs are checked against its catalogue
 //! entry (models/mod.rs).
 
-use super::arrays::{batch, batch_blocks, engine_f32, vec3, Kind, MAX_INPUTS};
+use super::arrays::{batch, batch_blocks, engine_f32, vec3, Block, Kind, MAX_INPUTS};
 use super::interrupt::interruptible;
 use crate::engine::Rows;
 use crate::error::Error;
@@ -331,11 +331,7 @@ pub fn eval<'py>(
         }
     }
     batch_blocks(py, &all, channels, |b, o| {
-        let mut cols: [Option<[&[f64]; 3]>; MAX_INPUTS] = [None; MAX_INPUTS];
-        for (c, s) in cols.iter_mut().zip(&slot) {
-            *c = s.map(|k| b.columns(k));
-        }
-        p.eval_block(b.columns(0), b.columns(1), &cols[..slot.len()], o)
+        p.eval_block(b.columns(0), b.columns(1), &input_columns(b, &slot)[..slot.len()], o)
     })
 }
 
@@ -382,12 +378,8 @@ pub fn sample_stack<'py>(
         let wi = wi.each_ref().map(|c| &c[..n]);
         let mut f = vec![0.0; n * c];
         if !(float32 && eval_f32_rows(&*p, wi, b.columns(0), &mut f)) {
-            let mut cols: [Option<[&[f64]; 3]>; MAX_INPUTS] = [None; MAX_INPUTS];
-            for (col, s) in cols.iter_mut().zip(&slot) {
-                *col = s.map(|k| b.columns(k));
-            }
             f.fill(0.0);
-            p.eval_block(wi, b.columns(0), &cols[..slot.len()], &mut f);
+            p.eval_block(wi, b.columns(0), &input_columns(b, &slot)[..slot.len()], &mut f);
         }
         for (r, (o, f)) in o.chunks_exact_mut(k).zip(f.chunks_exact(c)).enumerate() {
             let factor = weight_factor(DVec3::new(wi[0][r], wi[1][r], wi[2][r]), pdf[r]);
@@ -395,6 +387,16 @@ pub fn sample_stack<'py>(
             o[3 + c] = pdf[r];
         }
     })
+}
+
+/// A block's per-element input columns in the order of the model's inputs (`slot`: the block input holding each, if
+/// given).
+fn input_columns<'b>(b: &'b Block, slot: &[Option<usize>]) -> [Option<[&'b [f64]; 3]>; MAX_INPUTS] {
+    let mut cols = [None; MAX_INPUTS];
+    for (c, s) in cols.iter_mut().zip(slot) {
+        *c = s.map(|k| b.columns(k));
+    }
+    cols
 }
 
 /// f of a block's rows (columns of unit directions) by the model's float32 lanes, into `out` as float64; false where

@@ -121,11 +121,7 @@ impl LaneWalk {
             match layer {
                 LaneLayer::Dielectric { lobe, eta, compression, depth, colour } => {
                     if let Some(lobe) = lobe {
-                        let (geo, cos_h) = lobe.reflection(wi, wo);
-                        let lobe = geo * dielectric(cos_h, *eta);
-                        for (o, w) in out.iter_mut().zip(weight.iter()) {
-                            *o = *o + Floats::and(alive, *w * lobe);
-                        }
+                        add_dielectric_lobe(out, weight, alive, lobe, *eta, wi, wo);
                     }
                     let p = model.passage(j, wi, wo);
                     alive = alive & p.through;
@@ -142,10 +138,7 @@ impl LaneWalk {
                 }
                 LaneLayer::Conductor { lobe, ior } => {
                     if let Some(lobe) = lobe {
-                        let (geo, cos_h) = lobe.reflection(wi, wo);
-                        for ((o, w), ior) in out.iter_mut().zip(weight.iter()).zip(ior) {
-                            *o = *o + Floats::and(alive, *w * geo * conductor(cos_h, ior));
-                        }
+                        add_conductor_lobe(out, weight, alive, lobe, ior, wi, wo);
                     }
                 }
                 LaneLayer::Diffuse { rho } => {
@@ -156,6 +149,34 @@ impl LaneWalk {
                 }
             }
         }
+    }
+}
+
+/// out[c] += weight[c] · a dielectric interface's lobe at relative IOR η (its reflection times the Fresnel term), in
+/// the lanes `alive`: the term every layered model in lanes adds for a rough dielectric interface.
+#[inline(always)]
+pub fn add_dielectric_lobe(out: &mut [Floats], weight: &[Floats], alive: Mask, lobe: &Lobe, eta: f64, wi: V3, wo: V3) {
+    let (geo, cos_h) = lobe.reflection(wi, wo);
+    let lobe = geo * dielectric(cos_h, eta);
+    for (o, w) in out.iter_mut().zip(weight) {
+        *o = *o + Floats::and(alive, *w * lobe);
+    }
+}
+
+/// out[c] += weight[c] · a conductor's lobe with channel c's IOR, in the lanes `alive`.
+#[inline(always)]
+pub fn add_conductor_lobe(
+    out: &mut [Floats],
+    weight: &[Floats],
+    alive: Mask,
+    lobe: &Lobe,
+    ior: &[ConductorIor],
+    wi: V3,
+    wo: V3,
+) {
+    let (geo, cos_h) = lobe.reflection(wi, wo);
+    for ((o, w), ior) in out.iter_mut().zip(weight).zip(ior) {
+        *o = *o + Floats::and(alive, *w * geo * conductor(cos_h, ior));
     }
 }
 

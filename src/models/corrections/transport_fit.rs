@@ -197,9 +197,12 @@ impl engine::Correction for FitLanes<'_> {
         for l in (0..LANES).filter(|&l| above.0[l] != 0) {
             let (u, v) = (fi.0[l], fo.0[l]);
             let at = (i[l] as usize * NODES + o[l] as usize) * width;
-            let corners = [(at, (1.0 - u) * (1.0 - v)), (at + width, (1.0 - u) * v)];
-            let corners =
-                [corners[0], corners[1], (at + NODES * width, u * (1.0 - v)), (at + (NODES + 1) * width, u * v)];
+            let corners = [
+                (at, (1.0 - u) * (1.0 - v)),
+                (at + width, (1.0 - u) * v),
+                (at + NODES * width, u * (1.0 - v)),
+                (at + (NODES + 1) * width, u * v),
+            ];
             for (c, f) in f.iter_mut().enumerate() {
                 let (mut s, mut a) = (0.0f32, 0.0f32);
                 for &(k, w) in &corners {
