@@ -9,7 +9,7 @@ Evaluate f(wi, wo) of a layer stack on NumPy arrays:
 Conventions (local frame, z = normal, directions pointing away, f without the cosine): docs/conventions.md.
 """
 
-from . import atlas, dask, materials, mitsuba, oat, optics, plot, reference
+from . import atlas, dask, materials, measured, mitsuba, oat, optics, plot, reference
 from ._lamina import __version__
 from .catalogue import MODELS, models
 from .choose import Choice, choose
@@ -40,6 +40,7 @@ __all__ = [
     "to_srgb",
     "xyz_weights",
     "materials",
+    "measured",
     "optics",
     "reference",
     "jacobian_reflect",
