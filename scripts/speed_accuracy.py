@@ -244,76 +244,163 @@ def pareto(rows: list, band: str) -> list:
     return sorted(front, key=lambda r: r["ns_per_eval"])
 
 
+#: Each model's colour, and each variant's marker (the label less the model's name; GPU points are hollow).
+COLOURS = {
+    "belcour": "tab:blue",
+    "steinberg": "tab:orange",
+    "weidlich_wilkie": "tab:green",
+    "albedo_scaling": "tab:purple",
+    "tabulated": "tab:cyan",
+    "principled": "tab:red",
+    "reference": "black",
+}
+MARKERS = {
+    "default": "o",
+    "published": "v",
+    "improved": "*",
+    "symmetric": "<",
+    "TIR fraction": ">",
+    "fitted LUT": "P",
+    "+ interreflection": "X",
+    "precomputed": "p",
+    "Lazányi": "h",
+    "view": "d",
+    "paths": "s",
+}
+
+
+def variant(r: dict) -> str:
+    """The variant of row r, a key of MARKERS: what its label says beyond the model's name."""
+    rest = r["label"].split(" GPU")[0].removeprefix(r["model"]).strip()
+    if r["model"] == "reference":
+        return "paths"
+    if r["model"] == "belcour" and not rest:
+        return "published"
+    return rest if rest in MARKERS else "default"
+
+
+def short(r: dict) -> str:
+    """Row r's label in a panel: the GPU's adapter name left to the JSON and the legend."""
+    return r["label"].split(" GPU")[0] + (" GPU" if r.get("device") == "gpu" else "")
+
+
+def place_labels(ax, items: list) -> None:
+    """Writes each (text, (x, y)) of `items` beside its point, moving it down (then up) by whole lines until it
+    overlaps no label already placed, with a thin leader to the point."""
+    from matplotlib.text import Text
+
+    fig = ax.figure
+    renderer = fig.canvas.get_renderer()
+    placed = []
+    for text, xy in items:
+        for dy in [0, -10, 10, -20, 20, -30, 30, -40, 40, -50, 50, -60, 60]:
+            t = ax.annotate(
+                text,
+                xy,
+                xytext=(24 if dy else 6, dy - 3),
+                textcoords="offset points",
+                fontsize=7,
+                arrowprops={"arrowstyle": "-", "lw": 0.6, "color": "dimgrey"} if dy else None,
+            )
+            t.update_positions(renderer)
+            box = Text.get_window_extent(t, renderer).expanded(1.02, 1.1)  # the text's, without its leader
+            if not any(box.overlaps(b) for b in placed):
+                break
+            t.remove()
+        else:
+            print(f"no free place for the label {text!r}", file=sys.stderr)
+            ax.annotate(text, xy, xytext=(6, -3), textcoords="offset points", fontsize=7)
+        placed.append(box)
+
+
 def plot(rows: list, path: Path) -> None:
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    colours = {
-        "belcour": "tab:blue",
-        "steinberg": "tab:orange",
-        "weidlich_wilkie": "tab:green",
-        "albedo_scaling": "tab:purple",
-        "tabulated": "tab:cyan",
-        "principled": "tab:red",
-        "reference": "black",
-    }
     sets = {"suite": "the material suite (8 stacks)", "population": f"the held-out population ({POPULATION} stacks)"}
     fig, axes = plt.subplots(2, 3, figsize=(18, 13), sharey=True, constrained_layout=True)
     for row_axes, (name, title) in zip(axes, sets.items()):
         subset = [r for r in rows if r["set"] == name]
         for ax, band in zip(row_axes, BANDS):
-            for i, r in enumerate(sorted(subset, key=lambda r: (r["ns_per_eval"], r["lobe_error"][band]))):
-                y, se = r["lobe_error"][band], r["reference_rel_se"][band]
-                marker = "s" if r["model"] == "reference" else ("D" if r.get("device") == "gpu" else "o")
-                ax.errorbar(r["ns_per_eval"], y, yerr=se, fmt=marker, color=colours[r["model"]], ms=6, capsize=2)
-                # Neighbours in cost get labels at staggered heights, so that clusters stay legible.
-                ax.annotate(
-                    r["label"],
-                    (r["ns_per_eval"], y),
-                    fontsize=6.5,
-                    xytext=(5, 9 * (i % 4) - 12),
-                    textcoords="offset points",
-                    arrowprops={"arrowstyle": "-", "lw": 0.4, "color": "grey"},
-                )
-            front = pareto(subset, band)
-            ax.plot(
-                [r["ns_per_eval"] for r in front],
-                [r["lobe_error"][band] for r in front],
-                "--",
-                color="grey",
-                lw=1,
-                label="Pareto front",
-            )
             ax.set(
                 xscale="log",
                 yscale="log",
                 xlabel="cost per evaluation (ns, 1M pairs; CPU: 2 threads)",
                 title=f"{title}, θi {band.replace('-', '–')}°",
             )
+            for r in subset:
+                y, se = r["lobe_error"][band], r["reference_rel_se"][band]
+                if y is None:
+                    continue
+                colour, marker = COLOURS[r["model"]], MARKERS[variant(r)]
+                face = "none" if r.get("device") == "gpu" else colour
+                ms = 11 if marker == "*" else 6
+                ax.errorbar(r["ns_per_eval"], y, yerr=se, fmt=marker, color=colour, mfc=face, ms=ms, capsize=2)
+            front = pareto(subset, band)
+            ax.plot([r["ns_per_eval"] for r in front], [r["lobe_error"][band] for r in front], "--", color="grey", lw=1)
+            # Published → improved: an arrow from each published model to its improved variant.
+            labelled = {id(r) for r in front}
+            for r in subset:
+                if variant(r) != "improved" or r["lobe_error"][band] is None:
+                    continue
+                start = next(
+                    (
+                        o
+                        for o in subset
+                        if o["model"] == r["model"] and variant(o) == "published" and o["device"] == "cpu"
+                    ),
+                    None,
+                )
+                if start is not None and start["lobe_error"][band] is not None:
+                    ax.annotate(
+                        "",
+                        (r["ns_per_eval"], r["lobe_error"][band]),
+                        (start["ns_per_eval"], start["lobe_error"][band]),
+                        arrowprops={"arrowstyle": "->", "color": COLOURS[r["model"]], "lw": 1.2, "alpha": 0.7},
+                    )
+                    labelled |= {id(r), id(start)}
             ax.grid(True, which="both", alpha=0.3)
+            fig.canvas.draw()  # the labels' extents need the axes' final scales
+            chosen = sorted((r for r in subset if id(r) in labelled), key=lambda r: -r["lobe_error"][band])
+            items = [(short(r), (r["ns_per_eval"], r["lobe_error"][band])) for r in chosen]
+            # The reference's points say only their path count.
+            items += [
+                (f"{r['options']['samples']} paths", (r["ns_per_eval"], r["lobe_error"][band]))
+                for r in subset
+                if r["model"] == "reference" and id(r) not in labelled
+            ]
+            place_labels(ax, items)
         row_axes[0].set_ylabel(f"mean relative L1 lobe error vs the reference ({name})")
-    # The tabulated model's cost is per evaluation after a precomputation of its own per stack (docs/validation.md).
-    names = {"tabulated": "tabulated (after a per-stack precomputation, 0.1–2 s)"}
-    handles = [
-        plt.Line2D([], [], marker="s" if m == "reference" else "o", ls="", color=c, label=names.get(m, m))
-        for m, c in colours.items()
-    ]
-    handles.append(plt.Line2D([], [], marker="D", ls="", color="grey", label="GPU (wgpu, float32)"))
-    # So are the improved variants': their fit starts from the same adding-doubling solution (transport_fit).
-    handles.append(plt.Line2D([], [], ls="", label="improved: after the tabulated precomputation and a fit (< 0.1 s)"))
     # An error bar as wide as its point (the tabulated model sits at the reference's noise) would reach zero.
     axes[0, 0].set_ylim(bottom=2e-3)
-    fig.legend(
-        handles=handles + [plt.Line2D([], [], ls="--", color="grey", label="Pareto front")],
-        loc="outside lower center",
-        ncol=5,
-        fontsize=8,
-    )
+    # The tabulated model's cost is per evaluation after a precomputation of its own per stack (docs/validation.md);
+    # so are the improved variants': their fit starts from the same adding-doubling solution (transport_fit).
+    names = {"tabulated": "tabulated (after a per-stack precomputation, 0.1–2 s)", "reference": "reference (paths)"}
+    handles = [plt.Line2D([], [], marker="o", ls="", color=c, label=names.get(m, m)) for m, c in COLOURS.items()]
+    variants = {
+        "published": "published",
+        "default": "lamina's defaults",
+        "improved": "improved (tabulated's precomputation + a fit < 0.1 s)",
+    }
+    handles += [
+        plt.Line2D(
+            [], [], marker=MARKERS[v], ls="", color="grey", ms=10 if v == "improved" else 6, label=variants.get(v, v)
+        )
+        for v in MARKERS
+        if v != "paths"
+    ]
+    gpus = sorted({r["label"].split(" GPU ")[1].strip("()") for r in rows if r.get("device") == "gpu"})
+    handles += [
+        plt.Line2D([], [], marker="o", ls="", color="grey", mfc="none", label=f"hollow: GPU ({', '.join(gpus)})"),
+        plt.Line2D([], [], ls="--", color="grey", label="Pareto front (labelled)"),
+        plt.Line2D([], [], ls="-", marker=">", color="grey", label="published → improved (labelled)"),
+    ]
+    fig.legend(handles=handles, loc="outside lower center", ncol=7, fontsize=8)
     fig.suptitle(
-        "lamina: speed against accuracy (error bars: the reference's own relative standard error; the reference "
-        "at several path counts on the suite only)"
+        "lamina: speed against accuracy (colour: model; marker: variant. Error bars: the reference's own relative "
+        "standard error; the reference at several path counts on the suite only)"
     )
     fig.savefig(path, dpi=120)
 
