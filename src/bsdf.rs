@@ -3,27 +3,28 @@
 //! the cosine; directions point away from the surface (docs/conventions.md).
 
 use crate::optics::distribution::{G2Form, Microfacet};
+use crate::optics::dual::Real;
 use crate::optics::fresnel;
 use glam::DVec3;
 
 /// Microfacet reflection without the Fresnel factor: D(h) G2 / (4 |cos θi| |cos θo|) and the cosine wi·h that
 /// the Fresnel factor takes (Cook–Torrance 1982; Walter et al. 2007 eq. 20). Same-side directions only.
 #[inline(always)]
-pub fn reflection_geometry(mf: &Microfacet, form: G2Form, wi: DVec3, wo: DVec3) -> Option<(f64, f64)> {
+pub fn reflection_geometry<T: Real>(mf: &Microfacet<T>, form: G2Form, wi: DVec3, wo: DVec3) -> Option<(T, f64)> {
     // Computed first and selected last (no early return), so that loops over it vectorize.
     let h = (wi + wo).normalize();
     let h = if h.z < 0.0 { -h } else { h };
     let g = mf.g2(form, wi, wo, h);
     let geo = mf.d(h) * g / (4.0 * (wi.z * wo.z).abs());
-    (wi.z * wo.z > 0.0 && !mf.is_smooth() && g != 0.0).then_some((geo, wi.dot(h)))
+    (wi.z * wo.z > 0.0 && !mf.is_smooth() && g.value() != 0.0).then_some((geo, wi.dot(h)))
 }
 
 /// Rough conductor BRDF F(wi·h) D G2 / (4 cos θi cos θo) with the exact conductor Fresnel of η + iκ.
-pub fn rough_conductor(mf: &Microfacet, form: G2Form, eta: f64, k: f64, wi: DVec3, wo: DVec3) -> f64 {
+pub fn rough_conductor<T: Real>(mf: &Microfacet<T>, form: G2Form, eta: T, k: T, wi: DVec3, wo: DVec3) -> T {
     if wi.z <= 0.0 || wo.z <= 0.0 {
-        return 0.0;
+        return T::from(0.0);
     }
-    reflection_geometry(mf, form, wi, wo).map_or(0.0, |(geo, cos_h)| geo * fresnel::conductor(cos_h, eta, k))
+    reflection_geometry(mf, form, wi, wo).map_or(T::from(0.0), |(geo, cos_h)| geo * fresnel::conductor(cos_h, eta, k))
 }
 
 /// Rough dielectric BSDF (Walter et al. 2007 eqs. 20–21) for radiance: reflection when wi and wo lie on the

@@ -3,8 +3,8 @@
 //! (reference.rs) samples these boundaries and slabs; the adding-doubling solver (tables/adding_doubling.rs) projects
 //! them onto its grid. Both read them from here, so that they solve the same transport.
 
-use crate::optics::diffuse;
 use crate::optics::distribution::{Distribution, G2Form, Microfacet};
+use crate::optics::{diffuse, fresnel};
 use crate::stack::{Layer, Stack};
 use glam::DVec3;
 
@@ -84,6 +84,33 @@ impl ChannelStack {
             Base::Conductor { mf, eta, k } => crate::bsdf::rough_conductor(mf, self.g2, *eta, *k, w_light, w_view),
             Base::Diffuse { albedo, sigma } => albedo * diffuse::oren_nayar_shape(*sigma, w_light, w_view),
         }
+    }
+
+    /// The Dirac part of the reflection of boundaries b, b + 1, … for light arriving at zenith cosine `mu` above
+    /// boundary b: the paths that meet only smooth boundaries and cross the slabs unscattered. Interface b over what
+    /// lies below it (R, seen at the refracted cosine μt, attenuated there and back by e^{−2τ/μt}, Beer–Lambert) sums
+    /// its inter-reflections, R' = F + (1 − F)² R / (1 − F R) (F is the same from either side); a rough boundary or
+    /// a diffuse base returns none.
+    pub fn dirac_reflectance(&self, b: usize, mu: f64) -> f64 {
+        let Some(it) = self.interfaces.get(b) else {
+            return match &self.base {
+                Base::Conductor { mf, eta, k } if mf.is_smooth() => fresnel::conductor(mu, *eta, *k),
+                _ => 0.0,
+            };
+        };
+        if !it.mf.is_smooth() {
+            return 0.0;
+        }
+        let f = fresnel::dielectric(mu, it.eta);
+        let sin2_t = (1.0 - mu * mu) / (it.eta * it.eta);
+        if sin2_t >= 1.0 {
+            return f; // total internal reflection
+        }
+        let mu_t = (1.0 - sin2_t).sqrt();
+        let sl = &self.slabs[b];
+        let tau = (sl.sigma_a + sl.sigma_s) * sl.thickness;
+        let below = if tau > 0.0 { (-2.0 * tau / mu_t).exp() } else { 1.0 } * self.dirac_reflectance(b + 1, mu_t);
+        f + (1.0 - f) * (1.0 - f) * below / (1.0 - f * below)
     }
 
     /// True when boundary `b` scatters through Dirac deltas only (a smooth interface or a smooth conductor).

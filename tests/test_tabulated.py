@@ -16,7 +16,7 @@ from conftest import random_hemisphere
 from lamina import Dielectric, Stack
 from lamina.atlas import lobe_errors
 from lamina.materials import SUITE, metal, suite
-from lamina.reference import SUITE_THETAS
+from lamina.reference import SUITE_THETAS, suite_directions
 
 LOW = np.array(SUITE_THETAS) <= 80.0
 ISOTROPIC = [name for name in SUITE if name != "anisotropic-coat-metal"]
@@ -100,3 +100,25 @@ def test_tabulated_is_reciprocal_on_layered_stacks(name, rng):
     wi, wo = random_hemisphere(rng, 5000, 0.02), random_hemisphere(rng, 5000, 0.02)
     a, b = stack.eval(wi, wo, "tabulated"), stack.eval(wo, wi, "tabulated")
     np.testing.assert_allclose(a, b, rtol=1e-12, atol=1e-15 * a.max())
+
+
+def test_a_smooth_interface_under_a_smooth_top_is_a_dirac_lobe(tmp_path, monkeypatch):
+    """Two smooth interfaces over rough copper: the inner interface's mirror reflection leaves the stack as a Dirac
+    lobe (the reference's f leaves it out). The table leaves it out too and `specular` adds it, exact: once the table
+    blurred it into its cells (lobe error 2.40 at θi = 0). The lobe error is the suite's goal (2%) plus the
+    reference's noise; the albedo with the Dirac part is the reference's (Dirac paths included) within 3 standard
+    errors and the table's own energy loss (0.3%: a lossless stack's albedo, models/tabulated.rs). Measured: lobe
+    error 0.4-2.7% with noise 0.5-1.7%; albedo within 0.0017."""
+    monkeypatch.setenv("LAMINA_CACHE", str(tmp_path))
+    stack = Stack([Dielectric(1.5, 0.0, thickness=0.5), Dielectric(1.3, 0.0, thickness=0.5), metal("Cu", 0.5)])
+    wi, wo = suite_directions()
+    f, se = stack.reference(wi, wo, samples=20_000, seed=0, progress=False)
+    noise = np.sqrt(2 / np.pi) * se.sum(axis=(1, 2)) / np.abs(f).sum(axis=(1, 2))
+    err = lobe_errors(stack.eval(wi, wo, "tabulated"), f)
+    assert np.all(err <= 0.02 + noise), (err, noise)
+    t = np.radians(SUITE_THETAS)
+    w = np.stack([np.sin(t), np.zeros_like(t), np.cos(t)], -1)
+    albedo, albedo_se = stack.albedo(w, "reference", samples=100_000, seed=1, progress=False)
+    mirror = w * [-1.0, -1.0, 1.0]
+    tab = stack.albedo(w, "tabulated") + stack.specular(mirror, "tabulated")
+    assert np.all(np.abs(tab - albedo) <= 3 * albedo_se + 0.003), (tab, albedo, albedo_se)

@@ -13,7 +13,8 @@ from . import atlas, dask, materials, measured, mitsuba, oat, optics, plot, refe
 from ._lamina import __version__
 from .catalogue import MODELS, models
 from .choose import Choice, choose
-from .layers import Conductor, Dielectric, Diffuse
+from .fit import FitResult, fit
+from .layers import Conductor, Dielectric, Diffuse, Param
 from .optics import jacobian_reflect, jacobian_refract
 from .pictures import gallery
 from .renderer import DirectionalLight, EnvironmentLight, Mesh, PointLight, read_image, render, save_image, sky
@@ -25,6 +26,8 @@ __all__ = [
     "models",
     "choose",
     "Choice",
+    "fit",
+    "FitResult",
     "atlas",
     "dask",
     "mitsuba",
@@ -33,6 +36,7 @@ __all__ = [
     "Conductor",
     "Dielectric",
     "Diffuse",
+    "Param",
     "Stack",
     "Spectrum",
     "RGB_WAVELENGTHS",

@@ -62,6 +62,7 @@ __all__ = [
     "sample_visible",
     "sky",
     "specular",
+    "eval_grad",
     "steinberg_lut",
     "write_exr",
     "write_png",
@@ -105,6 +106,16 @@ def pdf(
     layers: list[dict], ext_ior: float, model: str, wi: _Array, wo: _Array, options: dict | None = None
 ) -> _Array: ...
 def specular(layers: list[dict], ext_ior: float, model: str, wo: _Array, options: dict | None = None) -> _Array: ...
+def eval_grad(
+    layers: list[dict],
+    ext_ior: float,
+    model: str,
+    wi: _Array,
+    wo: _Array,
+    seeds: list[tuple[int, int, str, int, float]],
+    n_params: int,
+    options: dict | None = None,
+) -> _Array: ...
 def reference_sample(
     layers: list[dict],
     ext_ior: float,

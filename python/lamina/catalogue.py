@@ -56,6 +56,9 @@ class Model:
     spectral: bool
     #: Whether the model runs on the GPU: "yes", "yes, but not" the option values that stay on the CPU, or "no".
     gpu: str = "no"
+    #: The layer fields whose gradients `Stack.eval_grad` returns, exact (forward mode): "ior", "k", "roughness_x",
+    #: "roughness_y", "angle", "albedo", "diffuse_roughness" (a diffuse base's roughness).
+    gradients: tuple = ()
 
     def __repr__(self) -> str:
         return f"<lamina model {self.name!r}: {self.summary}>"
@@ -75,7 +78,13 @@ def _from_rust(d: dict) -> Model:
     }
     inputs = {i["name"]: Input(i["name"], i["width"], tuple(i["range"]), i["doc"]) for i in d["inputs"]}
     return Model(
-        d["name"], d["summary"], MappingProxyType(options), MappingProxyType(inputs), **d["properties"], gpu=d["gpu"]
+        d["name"],
+        d["summary"],
+        MappingProxyType(options),
+        MappingProxyType(inputs),
+        **d["properties"],
+        gpu=d["gpu"],
+        gradients=tuple(d["gradients"]),
     )
 
 
@@ -87,7 +96,8 @@ MODELS: tuple = tuple(m.name for m in _CATALOGUE)
 
 def models() -> list:
     """The catalogue: one `Model` per model (`.name`, `.summary`, `.options`, `.inputs`, the properties
-    `.reciprocal`, `.energy_conserving`, `.anisotropic`, `.spectral`, and `.gpu`: whether it runs on the GPU)."""
+    `.reciprocal`, `.energy_conserving`, `.anisotropic`, `.spectral`, `.gpu`: whether it runs on the GPU, and
+    `.gradients`: the layer fields `Stack.eval_grad` differentiates by)."""
     return list(_CATALOGUE)
 
 

@@ -205,11 +205,11 @@ def rank(
 
 
 def resolves(stack) -> bool:
-    """Whether tabulated represents the stack (isotropic, no `_dirac_chain`) and its grid resolves the stack's lobes
+    """Whether tabulated represents the stack (isotropic) and its grid resolves the stack's lobes
     (no rough interface sharper than SHARP_ALPHA)."""
     layers = stack._resolve(None)
     sharp = any(0 < x["roughness"][0] < SHARP_ALPHA for x in layers if x["kind"] != "diffuse")
-    return _isotropic(stack) and not _dirac_chain(stack) and not sharp
+    return _isotropic(stack) and not sharp
 
 
 def check(stack, bound: np.ndarray, represents: dict) -> dict | None:
@@ -260,9 +260,9 @@ def represents(stack) -> dict:
     out = {}
     for label, model, options in CANDIDATES:
         if label == "tabulated":
-            out[label] = _isotropic(stack) and not _dirac_chain(stack)
+            out[label] = _isotropic(stack)
         elif options.get("variant") == "improved":
-            out[label] = out[model] and not _dirac_chain(stack)
+            out[label] = out[model]
         else:
             try:
                 stack.eval([0.0, 0.0, 1.0], [0.0, 0.0, 1.0], model, **options)
@@ -270,21 +270,6 @@ def represents(stack) -> dict:
             except ValueError:
                 out[label] = False
     return out
-
-
-def _dirac_chain(stack) -> bool:
-    """Whether a smooth interface lies under a smooth top with only smooth interfaces between: its mirror reflection
-    leaves the stack as a Dirac lobe, which the adding-doubling table blurs into its cells instead of leaving it out of
-    f (measured: 140–390% lobe error at θi where the mirror direction meets the grid; the improved variants, fitted to
-    that table, inherit it). `choose` does not offer tabulated or the improved variants there."""
-    smooth = 0
-    for x in stack._resolve(None):
-        if x["kind"] == "diffuse" or max(x["roughness"]) > 0:
-            break
-        smooth += 1
-        if x["kind"] == "conductor":
-            break
-    return smooth >= 2
 
 
 def _isotropic(stack) -> bool:

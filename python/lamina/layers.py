@@ -2,7 +2,8 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+import math
+from dataclasses import dataclass, fields, replace
 from numbers import Real
 from typing import Sequence, Union
 
@@ -13,6 +14,84 @@ from .spectrum import RGB_WAVELENGTHS, Spectrum
 Colour = Union[float, Sequence[float], Spectrum]
 #: A GGX/Beckmann roughness alpha in [0, 1]: isotropic scalar or (alpha_x, alpha_y) along the layer's tangent.
 Roughness = Union[float, Sequence[float]]
+
+
+@dataclass(frozen=True)
+class Param:
+    """A free parameter of a layer: a number between `low` and `high` that `lamina.fit` finds (starting at `init`,
+    default the middle) and `Stack.eval_grad` differentiates by. In place of a layer's number, or of one entry of
+    an RGB triple or a roughness pair: `lamina.Conductor(Param("eta", 0.1, 3.0), k=3.0, roughness=Param("r", 0.01,
+    1.0))`. A stack holding Params is a template; `Stack.bind(eta=..., r=...)` makes it a stack. One name is one
+    parameter wherever it appears."""
+
+    name: str
+    low: float
+    high: float
+    init: float | None = None
+
+    def __post_init__(self):
+        if not isinstance(self.name, str) or not self.name.isidentifier():
+            raise TypeError(f"Param name must be a Python identifier, got {self.name!r}")
+        for k in ("low", "high") + (("init",) if self.init is not None else ()):
+            v = getattr(self, k)
+            if not isinstance(v, Real) or isinstance(v, bool) or not math.isfinite(v):
+                raise ValueError(f"Param {self.name!r}: {k} must be a finite number, got {v!r}")
+        if not self.low < self.high:
+            raise ValueError(f"Param {self.name!r}: low must be below high, got [{self.low}, {self.high}]")
+        if self.init is not None and not self.low <= self.init <= self.high:
+            raise ValueError(f"Param {self.name!r}: init must lie in [{self.low}, {self.high}], got {self.init}")
+
+    @property
+    def start(self) -> float:
+        """Where a fit starts: `init`, else the middle of [low, high]."""
+        return 0.5 * (self.low + self.high) if self.init is None else float(self.init)
+
+
+def _params_in(value) -> list:
+    """The Params in a field's value (a Param, or a tuple or list holding some)."""
+    if isinstance(value, Param):
+        return [value]
+    if isinstance(value, (tuple, list)):
+        return [v for v in value if isinstance(v, Param)]
+    return []
+
+
+def _bound(value, values: dict):
+    """A field's value with each Param replaced by values[name]."""
+    if isinstance(value, Param):
+        return float(values[value.name])
+    if isinstance(value, (tuple, list)) and any(isinstance(v, Param) for v in value):
+        return tuple(float(values[v.name]) if isinstance(v, Param) else v for v in value)
+    return value
+
+
+def layer_params(layer) -> list:
+    """The Params of a layer, field by field: (field name, Param, entry index or None)."""
+    out = []
+    for f in fields(layer):
+        v = getattr(layer, f.name)
+        if isinstance(v, Param):
+            out.append((f.name, v, None))
+        elif isinstance(v, (tuple, list)):
+            out += [(f.name, x, i) for i, x in enumerate(v) if isinstance(x, Param)]
+    return out
+
+
+def bind_layer(layer, values: dict):
+    """`layer` with its Params replaced by `values` (name -> number), validated as any layer."""
+    return replace(layer, **{f.name: _bound(getattr(layer, f.name), values) for f in fields(layer)})
+
+
+def _validate_template(layer) -> None:
+    """A layer holding Params is valid when it is at both ends of their ranges (each field's range is an
+    interval): a ValueError names the Param whose range leaves the layer's."""
+    params = [p for _, p, _ in layer_params(layer)]
+    for end in ("low", "high"):
+        try:
+            bind_layer(layer, {p.name: getattr(p, end) for p in params})
+        except (ValueError, TypeError) as e:
+            names = ", ".join(f"{p.name!r} [{p.low}, {p.high}]" for p in params)
+            raise ValueError(f"{type(layer).__name__}: the range of Param {names} leaves the layer's: {e}") from None
 
 
 def _channels(name: str, value: Colour, wavelengths) -> list[float]:
@@ -45,7 +124,14 @@ def _colour(value: Colour):
 
 
 def _validate(layer, colours: tuple, scalars: tuple) -> None:
-    """Normalises a frozen layer's fields (colours to tuples, roughness to a pair) and checks its ranges in Rust."""
+    """Normalises a frozen layer's fields (colours to tuples, roughness to a pair) and checks its ranges in Rust; a
+    layer holding Params is checked at both ends of their ranges (`_validate_template`)."""
+    if layer_params(layer):
+        for f in fields(layer):
+            if isinstance(getattr(layer, f.name), list):
+                object.__setattr__(layer, f.name, tuple(getattr(layer, f.name)))
+        _validate_template(layer)
+        return
     for name in colours:
         try:
             object.__setattr__(layer, name, _colour(getattr(layer, name)))

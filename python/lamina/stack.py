@@ -15,7 +15,7 @@ from ._arrays import broadcast
 from .catalogue import model as _model
 from .catalogue import options_doc
 from .choose import choose
-from .layers import Conductor, Dielectric, Diffuse, Layer
+from .layers import Conductor, Dielectric, Diffuse, Layer, bind_layer, layer_params
 
 _LAYERS = (Dielectric, Conductor, Diffuse)
 
@@ -48,7 +48,10 @@ class Stack:
         if not isinstance(ext_ior, Real) or isinstance(ext_ior, bool):
             raise TypeError(f"ext_ior must be a number, got {ext_ior!r}")
         self.ext_ior = float(ext_ior)
-        _lamina.check_stack(self._resolve(None), self.ext_ior)
+        #: The free parameters (lamina.Param) of a template stack, in the order they first appear; () for a stack.
+        self.params = _params(self.layers)
+        at_start = self.bind(**{p.name: p.start for p in self.params}) if self.params else self
+        _lamina.check_stack(at_start._resolve(None), self.ext_ior)
 
     def __repr__(self) -> str:
         return f"Stack({list(self.layers)!r}, ext_ior={self.ext_ior})"
@@ -60,7 +63,51 @@ class Stack:
         return hash((self.layers, self.ext_ior))
 
     def _resolve(self, wavelengths) -> list:
+        if self.params:
+            raise ValueError(
+                f"the stack has free parameters {[p.name for p in self.params]}: give their values (Stack.bind), "
+                "differentiate by them (Stack.eval_grad) or fit them (lamina.fit)"
+            )
         return [layer._resolve(wavelengths) for layer in self.layers]
+
+    def bind(self, **values) -> Stack:
+        """The stack with each free parameter (`params`) replaced by its value: bind(name=number, ...), every
+        name given once, each value within its Param's [low, high]."""
+        names = [p.name for p in self.params]
+        unknown, missing = sorted(set(values) - set(names)), [n for n in names if n not in values]
+        if unknown or missing:
+            raise ValueError(f"bind takes the stack's free parameters {names}: unknown {unknown}, missing {missing}")
+        for p in self.params:
+            v = values[p.name]
+            if not isinstance(v, Real) or isinstance(v, bool) or not p.low <= v <= p.high:
+                raise ValueError(f"{p.name} must be a number in [{p.low}, {p.high}], got {v!r}")
+        return Stack([bind_layer(layer, values) for layer in self.layers], self.ext_ior)
+
+    def eval_grad(self, wi, wo, model: str = "microfacet", *, wavelengths=None, **kwargs) -> tuple:
+        """f(wi, wo) and its gradient by the template's free parameters (`params`), exact (forward-mode automatic
+        differentiation through the model: optics/dual.rs), at their values given as keyword arguments (default
+        each Param's start); other keyword arguments are the model's options. Returns (f (..., channels),
+        grad (..., channels, len(params))), float64. `lamina.models()` lists the fields each model differentiates
+        by (`.gradients`); a parameter of another field is a ValueError."""
+        if not self.params:
+            raise ValueError("eval_grad differentiates by a template's free parameters: this stack has no lamina.Param")
+        m = _model(model)
+        values = {p.name: kwargs.pop(p.name, p.start) for p in self.params}
+        stack = self.bind(**values)
+        wl = _wavelengths(wavelengths)
+        resolved = stack._resolve(wl)
+        seeds = _seeds(self, resolved)
+        for _, layer, field, _, _ in seeds:
+            if field not in m.gradients:
+                raise ValueError(
+                    f"model {m.name!r} has no gradient by {field} (layer {layer}); it differentiates by "
+                    f"{list(m.gradients) or 'nothing yet'}"
+                )
+        wi, wo = broadcast(wi=(wi, 3), wo=(wo, 3))
+        n = len(self.params)
+        out = _lamina.eval_grad(resolved, self.ext_ior, m.name, wi, wo, seeds, n, kwargs)
+        out = np.asarray(out, dtype=np.float64).reshape(out.shape[:-1] + (-1, n + 1))
+        return out[..., 0], out[..., 1:]
 
     def _split(self, model: str, kwargs: dict) -> tuple:
         """`model`'s catalogue entry, its options and its per-element inputs from keyword arguments (Rust checks the
@@ -404,6 +451,53 @@ def _unit_rows(name: str, w: np.ndarray) -> np.ndarray:
     if not np.all(np.isfinite(rows)) or np.any(norm == 0) or np.any(rows[:, 2] <= 0):
         raise ValueError(f"{name} must hold finite, non-zero directions above the surface (z > 0)")
     return rows / norm
+
+
+def _params(layers) -> tuple:
+    """The Params of `layers` in the order they first appear; a name used for two different Params is a ValueError."""
+    found = {}
+    for layer in layers:
+        for _, p, _ in layer_params(layer):
+            if found.setdefault(p.name, p) != p:
+                raise ValueError(f"two different Params are named {p.name!r}: {found[p.name]} and {p}")
+    return tuple(found.values())
+
+
+def _seeds(template: Stack, resolved: list) -> list:
+    """The seeds of Stack.eval_grad (models::Seed: parameter, layer, field, channel or −1, scale): where each Param of
+    `template` enters the model, at the bound values `resolved`. The model sees each interface's IOR and κ relative to
+    the medium above it, so a dielectric's IOR enters its own interface (scale 1/η above) and the next one
+    (−η / ior²)."""
+    index = {p.name: i for i, p in enumerate(template.params)}
+    channels = len(next(r[k] for r in resolved for k in ("ior", "albedo") if k in r))
+    above = [template.ext_ior] * channels
+    seeds = []
+    for i, (layer, r) in enumerate(zip(template.layers, resolved)):
+        for field, p, entry in layer_params(layer):
+            j = index[p.name]
+            chans = range(channels) if entry is None else [entry]
+            if field == "ior" and r["kind"] != "diffuse":
+                for c in chans:
+                    seeds.append((j, i, "ior", c, 1.0 / above[c]))
+                    below = resolved[i + 1] if i + 1 < len(resolved) else {"kind": "diffuse"}
+                    if r["kind"] == "dielectric" and below["kind"] != "diffuse":
+                        seeds.append((j, i + 1, "ior", c, -below["ior"][c] / r["ior"][c] ** 2))
+                        if below["kind"] == "conductor":
+                            seeds.append((j, i + 1, "k", c, -below["k"][c] / r["ior"][c] ** 2))
+            elif field == "k":
+                seeds += [(j, i, "k", c, 1.0 / above[c]) for c in chans]
+            elif field == "albedo":
+                seeds += [(j, i, "albedo", c, 1.0) for c in chans]
+            elif field == "roughness" and r["kind"] == "diffuse":
+                seeds.append((j, i, "diffuse_roughness", -1, 1.0))
+            elif field == "roughness":
+                axes = ("roughness_x", "roughness_y") if entry is None else (("roughness_x", "roughness_y")[entry],)
+                seeds += [(j, i, a, -1, 1.0) for a in axes]
+            else:
+                seeds.append((j, i, field, -1, 1.0))
+        if r["kind"] == "dielectric":
+            above = r["ior"]
+    return seeds
 
 
 def _wavelengths(wavelengths):

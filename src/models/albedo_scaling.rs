@@ -59,6 +59,7 @@ pub const INFO: ModelInfo = ModelInfo {
     ] as &[OptionSpec],
     inputs: &[] as &[InputSpec],
     properties: Properties { reciprocal: true, energy_conserving: true, anisotropic: true, spectral: true },
+    gradients: &[],
     prepare: |stack, args| Ok(Box::new(prepare(stack, &Options::parse(args)?)?)),
     #[cfg(feature = "gpu")]
     gpu: Some(&gpu::HALF),

@@ -12,13 +12,14 @@
 
 use super::common::block::{eval_rows, simd_columns, BLOCK};
 use super::common::options::{DISTRIBUTION, FRESNEL, G2};
-use super::{Args, InputSpec, Model, ModelInfo, OptionSpec, Properties, Proposal};
+use super::{Args, Field, Gradient, InputSpec, Model, ModelInfo, OptionSpec, Properties, Proposal, Seed, MAX_PARAMS};
 use crate::bsdf;
 use crate::engine::{self, Floats, Rows, V3};
 use crate::error::{value_error, Result};
 use crate::models::FitLanes;
 use crate::optics::diffuse;
 use crate::optics::distribution::{Distribution, G2Form, Microfacet};
+use crate::optics::dual::Dual;
 use crate::optics::fresnel::{self, FresnelForm};
 use crate::optics::lanes::{self, ConductorIor, Ggx};
 use crate::stack::{Layer, Stack};
@@ -40,6 +41,7 @@ pub const INFO: ModelInfo = ModelInfo {
     options: &[DISTRIBUTION, G2, FRESNEL] as &[OptionSpec],
     inputs: &[] as &[InputSpec],
     properties: Properties { reciprocal: true, energy_conserving: true, anisotropic: true, spectral: true },
+    gradients: &["ior", "k", "roughness_x", "roughness_y", "angle", "albedo", "diffuse_roughness"],
     prepare: |stack, args| Ok(Box::new(prepare(stack, &Options::parse(args)?)?)),
     #[cfg(feature = "gpu")]
     gpu: Some(&gpu::HALF),
@@ -120,7 +122,90 @@ impl Prepared {
     }
 }
 
+/// The gradient of `Prepared::eval` with respect to N parameters (`Model::gradient`), f and ∂f/∂p per channel in
+/// Duals: a rough conductor's η, κ (exact Fresnel), αx, αy and frame angle; a diffuse base's albedo and Oren–Nayar σ.
+fn gradient<const N: usize>(p: &Prepared, seeds: &[Seed]) -> Result<Gradient<'static>> {
+    let dual = |field: Field, channel: usize, v: f64| {
+        let mut x = Dual::<N>::from(v);
+        for s in seeds.iter().filter(|s| s.field == field && s.channel.is_none_or(|c| c == channel)) {
+            x.d[s.param] += s.scale;
+        }
+        x
+    };
+    let takes = |fields: &[Field], what: &str| match seeds.iter().find(|s| !fields.contains(&s.field)) {
+        Some(s) => value_error(format!(
+            "model 'microfacet' has no gradient by {} of this stack ({what})",
+            Field::NAMES[Field::ALL.iter().position(|f| *f == s.field).unwrap_or(0)]
+        )),
+        None => Ok(()),
+    };
+    let write = |out: &mut [f64], c: usize, f: Dual<N>| {
+        out[c * (N + 1)] = f.v;
+        out[c * (N + 1) + 1..(c + 1) * (N + 1)].copy_from_slice(&f.d);
+    };
+    match p {
+        Prepared::Conductor { mf, g2, fresnel, eta, k } => {
+            let fields = [Field::Ior, Field::K, Field::RoughnessX, Field::RoughnessY, Field::Angle];
+            takes(&fields, "a conductor: ior, k, roughness_x, roughness_y and angle")?;
+            if *fresnel != FresnelForm::Exact {
+                return value_error("gradients of model 'microfacet' take fresnel='exact'");
+            }
+            let (cos, sin) = mf.frame();
+            let mfd = Microfacet::<Dual<N>>::with_parameters(
+                mf.dist,
+                dual(Field::RoughnessX, 0, mf.alpha_x),
+                dual(Field::RoughnessY, 0, mf.alpha_y),
+                dual(Field::Angle, 0, sin.atan2(cos)),
+            );
+            let (smooth, g2) = (mf.is_smooth(), *g2);
+            let eta: Vec<Dual<N>> = eta.iter().enumerate().map(|(c, &e)| dual(Field::Ior, c, e)).collect();
+            let k: Vec<Dual<N>> = k.iter().enumerate().map(|(c, &x)| dual(Field::K, c, x)).collect();
+            Ok(Box::new(move |wi, wo, out| {
+                out.fill(0.0);
+                // A smooth conductor's reflection is a Dirac lobe, not part of f.
+                if wi.z <= 0.0 || wo.z <= 0.0 || smooth {
+                    return;
+                }
+                if let Some((geo, cos_h)) = bsdf::reflection_geometry(&mfd, g2, wi, wo) {
+                    for c in 0..eta.len() {
+                        write(out, c, geo * fresnel::conductor(cos_h, eta[c], k[c]));
+                    }
+                }
+            }))
+        }
+        Prepared::Diffuse { albedo, sigma } => {
+            takes(&[Field::Albedo, Field::DiffuseRoughness], "a diffuse base: albedo and diffuse_roughness")?;
+            let sigma = dual(Field::DiffuseRoughness, 0, *sigma);
+            let albedo: Vec<Dual<N>> = albedo.iter().enumerate().map(|(c, &a)| dual(Field::Albedo, c, a)).collect();
+            Ok(Box::new(move |wi, wo, out| {
+                let shape = diffuse::oren_nayar_shape(sigma, wi, wo);
+                for (c, &a) in albedo.iter().enumerate() {
+                    write(out, c, a * shape);
+                }
+            }))
+        }
+        Prepared::CoatLambert { .. } => value_error(
+            "model 'microfacet' has no gradients of a smooth coat over Lambert yet (its F̄_int has no derivative)",
+        ),
+    }
+}
+
 impl Model for Prepared {
+    fn gradient(&self, seeds: &[Seed], n_params: usize) -> Result<Gradient<'_>> {
+        // One Dual width per parameter count.
+        match n_params {
+            1 => gradient::<1>(self, seeds),
+            2 => gradient::<2>(self, seeds),
+            3 => gradient::<3>(self, seeds),
+            4 => gradient::<4>(self, seeds),
+            5 => gradient::<5>(self, seeds),
+            6 => gradient::<6>(self, seeds),
+            7 => gradient::<7>(self, seeds),
+            8 => gradient::<8>(self, seeds),
+            n => value_error(format!("gradients take 1 to {MAX_PARAMS} parameters, got {n}")),
+        }
+    }
+
     fn eval_block(&self, wi: [&[f64]; 3], wo: [&[f64]; 3], _: &super::Inputs, out: &mut [f64]) {
         simd_columns!(Prepared, self, wi, wo, out)
     }

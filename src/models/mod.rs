@@ -73,6 +73,8 @@ pub struct ModelInfo {
     pub options: &'static [OptionSpec],
     pub inputs: &'static [InputSpec],
     pub properties: Properties,
+    /// The layer fields (`Field::NAMES`) whose gradients `Model::gradient` returns, exact (forward-mode, optics/dual.rs).
+    pub gradients: &'static [&'static str],
     /// The model for a stack, its options read from `Args` into the model's own options struct.
     pub prepare: fn(&Stack, &Args) -> Result<Box<dyn Model>>,
     /// The model's GPU half (common/gpu.rs), if it has one.
@@ -88,6 +90,7 @@ pub const REFERENCE: ModelInfo = ModelInfo {
     options: &[DISTRIBUTION, G2],
     inputs: &[],
     properties: Properties { reciprocal: true, energy_conserving: true, anisotropic: true, spectral: true },
+    gradients: &[],
     prepare: |_, _| value_error("model 'reference' is a Monte Carlo estimator (Stack.reference), not a prepared model"),
     #[cfg(feature = "gpu")]
     gpu: None,
@@ -101,6 +104,58 @@ pub fn entries() -> impl Iterator<Item = &'static ModelInfo> {
 /// The per-element input columns of one block, in the order of the model's `inputs`: None where not given; a
 /// scalar input fills column 0.
 pub type Inputs<'a> = [Option<[&'a [f64]; 3]>];
+
+/// A layer parameter that `Stack.eval_grad` differentiates f with respect to: gradient `param` of the output is
+/// the derivative by the `layer`'s `field` in `channel` (None: in every channel), times `scale`, the derivative of the
+/// value the model sees by the parameter (1/η above for an IOR or κ, which the model sees relative to the medium
+/// above; 1 otherwise). Several seeds may feed one parameter (a roughness: both αx and αy).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Seed {
+    pub param: usize,
+    pub layer: usize,
+    pub field: Field,
+    pub channel: Option<usize>,
+    pub scale: f64,
+}
+
+/// A layer field that gradients are taken with respect to (`Field::NAMES`: their Python names).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Field {
+    Ior,
+    K,
+    RoughnessX,
+    RoughnessY,
+    Angle,
+    Albedo,
+    DiffuseRoughness,
+}
+
+impl Field {
+    pub const NAMES: [&'static str; 7] =
+        ["ior", "k", "roughness_x", "roughness_y", "angle", "albedo", "diffuse_roughness"];
+    pub const ALL: [Field; 7] = [
+        Field::Ior,
+        Field::K,
+        Field::RoughnessX,
+        Field::RoughnessY,
+        Field::Angle,
+        Field::Albedo,
+        Field::DiffuseRoughness,
+    ];
+}
+
+impl std::str::FromStr for Field {
+    type Err = crate::error::Error;
+    fn from_str(s: &str) -> Result<Self> {
+        crate::error::parse_choice("field", s, &Self::NAMES, &Self::ALL)
+    }
+}
+
+/// The most parameters one gradient takes.
+pub const MAX_PARAMS: usize = 8;
+
+/// f and its parameter gradient at a direction pair (wi, wo): per channel, f and then ∂f/∂p of each parameter.
+pub type Gradient<'a> = Box<dyn Fn(DVec3, DVec3, &mut [f64]) + Sync + 'a>;
 
 /// A lobe of the sampling mixture of a model: a GGX/Beckmann reflection lobe sampled by its visible normals, or the
 /// cosine-weighted hemisphere (diffuse terms).
@@ -141,6 +196,12 @@ pub trait Model: Send + Sync {
     /// same u, to float32); false sends the call to the float64 sampler.
     fn sample_f32(&self, _wo: Rows, _u: Rows, _out: &mut [f32]) -> bool {
         false
+    }
+
+    /// f and its gradient with respect to `n_params` parameters fed by `seeds` (`Gradient`), or a ValueError where the
+    /// model does not differentiate one of the seeds' fields (`ModelInfo::gradients` lists the fields it does).
+    fn gradient(&self, _seeds: &[Seed], _n_params: usize) -> Result<Gradient<'_>> {
+        value_error("this model has no parameter gradients")
     }
 
     /// The model's transport_fit correction, if it has one (what the GPU applies after the model's own f).

@@ -97,6 +97,7 @@ pub const INFO: ModelInfo = ModelInfo {
     ] as &[OptionSpec],
     inputs: &[] as &[InputSpec],
     properties: Properties { reciprocal: false, energy_conserving: false, anisotropic: true, spectral: true },
+    gradients: &[],
     prepare: |stack, args| {
         let opts = Options::parse(args)?;
         transport_fit::apply(opts.transport_fit, Box::new(prepare(stack, &opts)?), stack)

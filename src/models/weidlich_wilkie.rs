@@ -93,6 +93,7 @@ pub const INFO: ModelInfo = ModelInfo {
         InputSpec { name: "mask", width: 1, range: (0.0, 1.0), doc: "patina map: where the top layer covers the base" },
     ],
     properties: Properties { reciprocal: false, energy_conserving: false, anisotropic: true, spectral: true },
+    gradients: &[],
     prepare: |stack, args| {
         let opts = Options::parse(args, stack.channels)?;
         transport_fit::apply(opts.transport_fit, Box::new(prepare(stack, &opts)?), stack)

@@ -1,5 +1,6 @@
 //! Diffuse lobes: Lambert and the qualitative Oren–Nayar model.
 
+use super::dual::Real;
 use glam::DVec3;
 use std::f64::consts::FRAC_1_PI;
 
@@ -19,16 +20,16 @@ pub fn oren_nayar(albedo: f64, sigma: f64, wi: DVec3, wo: DVec3) -> f64 {
 }
 
 /// The Oren–Nayar BRDF per unit albedo, f/ρ (shared by all colour channels).
-pub fn oren_nayar_shape(sigma: f64, wi: DVec3, wo: DVec3) -> f64 {
+pub fn oren_nayar_shape<T: Real>(sigma: T, wi: DVec3, wo: DVec3) -> T {
     if wi.z <= 0.0 || wo.z <= 0.0 {
-        return 0.0;
+        return T::from(0.0);
     }
-    if sigma == 0.0 {
-        return FRAC_1_PI;
+    if sigma.value() == 0.0 {
+        return T::from(FRAC_1_PI);
     }
     let s2 = sigma * sigma;
-    let a = 1.0 - 0.5 * s2 / (s2 + 0.33);
-    let b = 0.45 * s2 / (s2 + 0.09);
+    let a = T::from(1.0) - s2 * 0.5 / (s2 + 0.33);
+    let b = s2 * 0.45 / (s2 + 0.09);
     let sin_i = (1.0 - wi.z * wi.z).max(0.0).sqrt();
     let sin_o = (1.0 - wo.z * wo.z).max(0.0).sqrt();
     let cos_dphi = if sin_i > 1e-12 && sin_o > 1e-12 {
@@ -39,7 +40,7 @@ pub fn oren_nayar_shape(sigma: f64, wi: DVec3, wo: DVec3) -> f64 {
     // sin α tan β with α the larger zenith angle, β the smaller one; tan β grows without bound as both directions
     // graze, so its cosine is kept ≥ 1e-12 (f stays finite; unchanged above 1e-12).
     let sin_alpha_tan_beta = sin_i * sin_o / wi.z.max(wo.z).max(1e-12);
-    FRAC_1_PI * (a + b * cos_dphi.max(0.0) * sin_alpha_tan_beta)
+    (a + b * cos_dphi.max(0.0) * sin_alpha_tan_beta) * FRAC_1_PI
 }
 
 #[cfg(test)]

@@ -2,6 +2,7 @@
 //! masking of Torrance–Sparrow, and visible-normal sampling. Directions are in the local frame (z = normal); each
 //! distribution carries the rotation `angle` of its tangent frame, along whose x axis `alpha_x` applies.
 
+use super::dual::Real;
 use super::to_tangent_frame;
 use glam::DVec3;
 use std::f64::consts::PI;
@@ -25,14 +26,16 @@ impl std::str::FromStr for Distribution {
     }
 }
 
+/// A microfacet distribution: its roughnesses and tangent frame are f64, or Duals where a gradient is taken with
+/// respect to them (optics/dual.rs).
 #[derive(Clone, Copy, Debug)]
-pub struct Microfacet {
+pub struct Microfacet<T = f64> {
     pub dist: Distribution,
-    pub alpha_x: f64,
-    pub alpha_y: f64,
+    pub alpha_x: T,
+    pub alpha_y: T,
     smooth: bool,
-    cos_phi: f64,
-    sin_phi: f64,
+    cos_phi: T,
+    sin_phi: T,
 }
 
 /// Smallest roughness evaluated as a microfacet lobe (as in Mitsuba 3); (0, 0) is a smooth Dirac interface.
@@ -40,16 +43,117 @@ pub const MIN_ALPHA: f64 = 1e-4;
 
 impl Microfacet {
     pub fn new(dist: Distribution, alpha_x: f64, alpha_y: f64, angle: f64) -> Self {
+        Microfacet::<f64>::with_parameters(dist, alpha_x, alpha_y, angle)
+    }
+}
+
+impl<T: Real> Microfacet<T> {
+    /// The distribution of roughnesses αx, αy (each at least MIN_ALPHA; both zero: smooth) along the tangent frame
+    /// rotated by `angle` (radians), in f64 or in Duals.
+    pub fn with_parameters(dist: Distribution, alpha_x: T, alpha_y: T, angle: T) -> Self {
+        let (sin_phi, cos_phi) = angle.sin_cos();
         Self {
             dist,
-            alpha_x: alpha_x.max(MIN_ALPHA),
-            alpha_y: alpha_y.max(MIN_ALPHA),
-            smooth: alpha_x == 0.0 && alpha_y == 0.0,
-            cos_phi: angle.cos(),
-            sin_phi: angle.sin(),
+            alpha_x: alpha_x.max_c(MIN_ALPHA),
+            alpha_y: alpha_y.max_c(MIN_ALPHA),
+            smooth: alpha_x.value() == 0.0 && alpha_y.value() == 0.0,
+            cos_phi,
+            sin_phi,
         }
     }
 
+    /// True when both roughnesses are zero: the interface is a perfectly smooth (Dirac) one, whose reflection and
+    /// refraction are delta lobes that a BSDF evaluation does not return.
+    pub fn is_smooth(&self) -> bool {
+        self.smooth
+    }
+
+    /// w in the tangent frame: (x, y) along αx and αy, and z.
+    #[inline(always)]
+    fn tangent_t(&self, w: DVec3) -> (T, T, f64) {
+        (self.cos_phi * w.x + self.sin_phi * w.y, self.cos_phi * w.y - self.sin_phi * w.x, w.z)
+    }
+
+    /// Normal distribution D(m) (Walter et al. 2007 eq. 33 for GGX, eq. 25 for Beckmann; anisotropic form of
+    /// Heitz 2014 eq. 85/86). Zero for m below the horizon. (This and the masking functions below compute first and
+    /// select last, without early returns, so that loops over them vectorize.)
+    #[inline(always)]
+    pub fn d(&self, m: DVec3) -> T {
+        let (mx, my, mz) = self.tangent_t(m);
+        let (x, y) = (mx / self.alpha_x, my / self.alpha_y);
+        let z2 = mz * mz;
+        let d = match self.dist {
+            Distribution::Ggx => {
+                let s = x * x + y * y + z2;
+                T::from(1.0) / (T::from(PI) * self.alpha_x * self.alpha_y * s * s)
+            }
+            Distribution::Beckmann => {
+                (-(x * x + y * y) / z2).exp() / (T::from(PI) * self.alpha_x * self.alpha_y * z2 * z2)
+            }
+        };
+        if mz > 0.0 {
+            d
+        } else {
+            T::from(0.0)
+        }
+    }
+
+    /// Smith Λ(w) of the distribution (Heitz 2014 eq. 72 for GGX, eq. 69 for Beckmann), using the projected
+    /// roughness α(φ) along the azimuth of w. Both forms give 0 for α tan θ = 0 and ∞ for α tan θ = ∞ (grazing).
+    #[inline(always)]
+    pub fn lambda(&self, w: DVec3) -> T {
+        let (wx, wy, wz) = self.tangent_t(w);
+        let (ax, ay) = (wx * self.alpha_x, wy * self.alpha_y);
+        let alpha_tan2 = (ax * ax + ay * ay) / (wz * wz);
+        match self.dist {
+            Distribution::Ggx => ((alpha_tan2 + 1.0).sqrt() - 1.0) * 0.5,
+            Distribution::Beckmann => {
+                let a = T::from(1.0) / alpha_tan2.sqrt();
+                (a.erf() - 1.0) * 0.5 + (-a * a).exp() / (a * (2.0 * PI.sqrt()))
+            }
+        }
+    }
+
+    /// Smith masking G1(w, m) = χ⁺((w·m)/(w·n)) / (1 + Λ(w)) (Heitz 2014 eq. 43).
+    #[inline(always)]
+    pub fn g1(&self, w: DVec3, m: DVec3) -> T {
+        let g = T::from(1.0) / (self.lambda(w) + 1.0);
+        if w.dot(m) * w.z > 0.0 {
+            g
+        } else {
+            T::from(0.0)
+        }
+    }
+
+    /// Separable Smith masking-shadowing G1(wi) G1(wo) (Heitz 2014 eq. 98; what Mitsuba 3 uses).
+    #[inline(always)]
+    pub fn g2_separable(&self, wi: DVec3, wo: DVec3, m: DVec3) -> T {
+        self.g1(wi, m) * self.g1(wo, m)
+    }
+
+    /// Height-correlated Smith masking-shadowing 1 / (1 + Λ(wi) + Λ(wo)) (Heitz 2014 eq. 99; pbrt-v4).
+    #[inline(always)]
+    pub fn g2_height_correlated(&self, wi: DVec3, wo: DVec3, m: DVec3) -> T {
+        let g = T::from(1.0) / (T::from(1.0) + self.lambda(wi) + self.lambda(wo));
+        if wi.dot(m) * wi.z > 0.0 && wo.dot(m) * wo.z > 0.0 {
+            g
+        } else {
+            T::from(0.0)
+        }
+    }
+
+    /// Masking-shadowing of the chosen form.
+    #[inline(always)]
+    pub fn g2(&self, form: G2Form, wi: DVec3, wo: DVec3, m: DVec3) -> T {
+        match form {
+            G2Form::Separable => self.g2_separable(wi, wo, m),
+            G2Form::HeightCorrelated => self.g2_height_correlated(wi, wo, m),
+            G2Form::VCavity => T::from(v_cavity(wi, wo, m)),
+        }
+    }
+}
+
+impl Microfacet {
     /// The same distribution and tangent frame with other roughnesses.
     #[inline(always)]
     pub fn with_alpha(&self, alpha_x: f64, alpha_y: f64) -> Self {
@@ -73,12 +177,6 @@ impl Microfacet {
         (self.cos_phi, self.sin_phi)
     }
 
-    /// True when both roughnesses are zero: the interface is a perfectly smooth (Dirac) one, whose reflection and
-    /// refraction are delta lobes that a BSDF evaluation does not return.
-    pub fn is_smooth(&self) -> bool {
-        self.smooth
-    }
-
     #[inline(always)]
     fn tangent(&self, w: DVec3) -> DVec3 {
         to_tangent_frame(w, self.cos_phi, self.sin_phi)
@@ -86,28 +184,6 @@ impl Microfacet {
 
     fn untangent(&self, w: DVec3) -> DVec3 {
         to_tangent_frame(w, self.cos_phi, -self.sin_phi)
-    }
-
-    /// Normal distribution D(m) (Walter et al. 2007 eq. 33 for GGX, eq. 25 for Beckmann; anisotropic form of
-    /// Heitz 2014 eq. 85/86). Zero for m below the horizon. (This and the masking functions below compute first and
-    /// select last, without early returns, so that loops over them vectorize.)
-    #[inline(always)]
-    pub fn d(&self, m: DVec3) -> f64 {
-        let m = self.tangent(m);
-        let (x, y) = (m.x / self.alpha_x, m.y / self.alpha_y);
-        let z2 = m.z * m.z;
-        let d = match self.dist {
-            Distribution::Ggx => {
-                let s = x * x + y * y + z2;
-                1.0 / (PI * self.alpha_x * self.alpha_y * s * s)
-            }
-            Distribution::Beckmann => (-(x * x + y * y) / z2).exp() / (PI * self.alpha_x * self.alpha_y * z2 * z2),
-        };
-        if m.z > 0.0 {
-            d
-        } else {
-            0.0
-        }
     }
 
     /// Projected roughness α(φ) = √(αx² cos²φ + αy² sin²φ) along the azimuth φ of `w` in the tangent frame (Heitz
@@ -119,59 +195,6 @@ impl Microfacet {
             return self.alpha_x;
         }
         (((w.x * self.alpha_x).powi(2) + (w.y * self.alpha_y).powi(2)) / r2).sqrt()
-    }
-
-    /// Smith Λ(w) of the distribution (Heitz 2014 eq. 72 for GGX, eq. 69 for Beckmann), using the projected
-    /// roughness α(φ) along the azimuth of w. Both forms give 0 for α tan θ = 0 and ∞ for α tan θ = ∞ (grazing).
-    #[inline(always)]
-    pub fn lambda(&self, w: DVec3) -> f64 {
-        let w = self.tangent(w);
-        let alpha_tan2 = ((w.x * self.alpha_x).powi(2) + (w.y * self.alpha_y).powi(2)) / (w.z * w.z);
-        match self.dist {
-            Distribution::Ggx => 0.5 * ((1.0 + alpha_tan2).sqrt() - 1.0),
-            Distribution::Beckmann => {
-                let a = 1.0 / alpha_tan2.sqrt();
-                0.5 * (libm::erf(a) - 1.0) + (-a * a).exp() / (2.0 * a * PI.sqrt())
-            }
-        }
-    }
-
-    /// Smith masking G1(w, m) = χ⁺((w·m)/(w·n)) / (1 + Λ(w)) (Heitz 2014 eq. 43).
-    #[inline(always)]
-    pub fn g1(&self, w: DVec3, m: DVec3) -> f64 {
-        let g = 1.0 / (1.0 + self.lambda(w));
-        if w.dot(m) * w.z > 0.0 {
-            g
-        } else {
-            0.0
-        }
-    }
-
-    /// Separable Smith masking-shadowing G1(wi) G1(wo) (Heitz 2014 eq. 98; what Mitsuba 3 uses).
-    #[inline(always)]
-    pub fn g2_separable(&self, wi: DVec3, wo: DVec3, m: DVec3) -> f64 {
-        self.g1(wi, m) * self.g1(wo, m)
-    }
-
-    /// Height-correlated Smith masking-shadowing 1 / (1 + Λ(wi) + Λ(wo)) (Heitz 2014 eq. 99; pbrt-v4).
-    #[inline(always)]
-    pub fn g2_height_correlated(&self, wi: DVec3, wo: DVec3, m: DVec3) -> f64 {
-        let g = 1.0 / (1.0 + self.lambda(wi) + self.lambda(wo));
-        if wi.dot(m) * wi.z > 0.0 && wo.dot(m) * wo.z > 0.0 {
-            g
-        } else {
-            0.0
-        }
-    }
-
-    /// Masking-shadowing of the chosen form.
-    #[inline(always)]
-    pub fn g2(&self, form: G2Form, wi: DVec3, wo: DVec3, m: DVec3) -> f64 {
-        match form {
-            G2Form::Separable => self.g2_separable(wi, wo, m),
-            G2Form::HeightCorrelated => self.g2_height_correlated(wi, wo, m),
-            G2Form::VCavity => v_cavity(wi, wo, m),
-        }
     }
 
     /// Distribution of visible normals D_wi(m) = G1(wi, m) max(0, wi·m) D(m) / cos θi (Heitz 2018 eq. 1),

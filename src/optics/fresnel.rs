@@ -1,6 +1,8 @@
 //! Fresnel reflectance: exact dielectric and conductor, Schlick, Lazányi–Szirmay-Kalos, and the
 //! hemispherical (diffuse) Fresnel reflectance.
 
+use super::dual::Real;
+
 /// The cosines of a refraction by Snell's law: (|cos_i| clamped to 1, the relative IOR seen from the incident side,
 /// cos_t), the IOR inverted for incidence from inside (cos_i < 0); None under total internal reflection.
 #[inline(always)]
@@ -35,23 +37,23 @@ pub fn dielectric_transmittance(cos_i: f64, eta: f64) -> f64 {
 /// Exact unpolarized conductor Fresnel reflectance for the relative complex IOR `eta` + i`k`
 /// (closed form of the Fresnel equations, e.g. Lagarde 2013 / Born & Wolf §14.2). `cos_i` in [0, 1].
 #[inline(always)]
-pub fn conductor(cos_i: f64, eta: f64, k: f64) -> f64 {
+pub fn conductor<T: Real>(cos_i: f64, eta: T, k: T) -> T {
     let cos_i = cos_i.clamp(0.0, 1.0);
     let cos2 = cos_i * cos_i;
     let sin2 = 1.0 - cos2;
     let t0 = eta * eta - k * k - sin2;
-    let a2b2 = (t0 * t0 + 4.0 * eta * eta * k * k).sqrt();
+    let a2b2 = (t0 * t0 + T::from(4.0) * eta * eta * k * k).sqrt();
     // a² = (a2b2 + t0)/2, written as 2η²κ²/(a2b2 − t0) for t0 < 0 (total internal reflection when κ → 0), where the
     // sum cancels: in float32 it loses F − 1 entirely for κ ≈ 1e-5.
-    let a = if t0 >= 0.0 { 0.5 * (a2b2 + t0) } else { 2.0 * eta * eta * k * k / (a2b2 - t0) }.sqrt();
+    let a = if t0.value() >= 0.0 { (a2b2 + t0) * 0.5 } else { T::from(2.0) * eta * eta * k * k / (a2b2 - t0) }.sqrt();
     // Both ratios are ((a ∓ cos)² + b²)-like, ≥ 0: clamped so that rounding (e.g. η = 1, κ = 0, where F = 0) cannot
     // make them negative; a vanishing denominator (grazing incidence on η = 1, κ = 0) is the grazing limit 1.
-    let den_s = a2b2 + 2.0 * a * cos_i + cos2;
-    let r_s = if den_s > 0.0 { ((a2b2 - 2.0 * a * cos_i + cos2) / den_s).max(0.0) } else { 1.0 };
-    let num = cos2 * a2b2 - 2.0 * a * cos_i * sin2 + sin2 * sin2;
-    let den = cos2 * a2b2 + 2.0 * a * cos_i * sin2 + sin2 * sin2;
-    let r_p = if den > 0.0 { (r_s * num / den).max(0.0) } else { r_s };
-    0.5 * (r_s + r_p)
+    let den_s = a2b2 + a * 2.0 * cos_i + cos2;
+    let r_s = if den_s.value() > 0.0 { ((a2b2 - a * 2.0 * cos_i + cos2) / den_s).max_c(0.0) } else { T::from(1.0) };
+    let num = a2b2 * cos2 - a * 2.0 * cos_i * sin2 + sin2 * sin2;
+    let den = a2b2 * cos2 + a * 2.0 * cos_i * sin2 + sin2 * sin2;
+    let r_p = if den.value() > 0.0 { (r_s * num / den).max_c(0.0) } else { r_s };
+    (r_s + r_p) * 0.5
 }
 
 /// Reflectance at normal incidence of a relative complex IOR `eta` + i`k`.

@@ -3,6 +3,7 @@
 
 pub mod diffuse;
 pub mod distribution;
+pub mod dual;
 pub mod fresnel;
 pub mod jacobian;
 pub mod lanes;

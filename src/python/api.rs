@@ -5,7 +5,7 @@
 use super::arrays::{batch, batch_blocks, engine_f32, vec3, Block, Kind, MAX_INPUTS};
 use super::interrupt::interruptible;
 use crate::engine::Rows;
-use crate::error::Error;
+use crate::error::{value_error, Error};
 use crate::models::common::mixture::{self, weight_factor};
 use crate::models::common::options::microsurface;
 use crate::models::{self, Args, ModelInfo, OptionKind, Value};
@@ -302,6 +302,7 @@ pub fn catalogue<'py>(py: Python<'py>) -> PyResult<Vec<Bound<'py, PyDict>>> {
             props.set_item("spectral", p.spectral)?;
             d.set_item("properties", props)?;
             d.set_item("gpu", gpu_support(m.name))?;
+            d.set_item("gradients", m.gradients.to_vec())?;
             Ok(d)
         })
         .collect()
@@ -426,6 +427,42 @@ pub fn pdf<'py>(
     let (_, p, _) = prepared(py, layers, ext_ior, model, options)?;
     let dirs = [("wi", wi, Kind::Direction), ("wo", wo, Kind::Direction)];
     batch(py, &dirs, 1, |r, o| o[0] = mixture::pdf(&*p, vec3(&r[0]), vec3(&r[1])))
+}
+
+/// f and its gradient with respect to layer parameters (Model::gradient): (..., channels × (1 + n_params)), per
+/// channel f and then ∂f/∂p of each parameter. `seeds`: (parameter, layer, field, channel or −1 for every channel,
+/// scale) tuples (models::Seed).
+#[pyfunction]
+#[pyo3(signature = (layers, ext_ior, model, wi, wo, seeds, n_params, options=None))]
+#[allow(clippy::too_many_arguments)]
+pub fn eval_grad<'py>(
+    py: Python<'py>,
+    layers: &Bound<'py, PyList>,
+    ext_ior: f64,
+    model: &str,
+    wi: &Bound<'py, PyAny>,
+    wo: &Bound<'py, PyAny>,
+    seeds: Vec<(usize, usize, String, i64, f64)>,
+    n_params: usize,
+    options: Option<&Bound<'py, PyDict>>,
+) -> PyResult<Bound<'py, PyAny>> {
+    let (stack, p, _) = prepared(py, layers, ext_ior, model, options)?;
+    let seeds = seeds
+        .into_iter()
+        .map(|(param, layer, field, channel, scale)| {
+            if param >= n_params || layer >= stack.layers.len() || channel >= stack.channels as i64 {
+                return value_error(format!(
+                    "a seed names parameter {param} of {n_params}, layer {layer} of {} and channel {channel} of {}",
+                    stack.layers.len(),
+                    stack.channels
+                ));
+            }
+            Ok(models::Seed { param, layer, field: field.parse()?, channel: usize::try_from(channel).ok(), scale })
+        })
+        .collect::<crate::error::Result<Vec<_>>>()?;
+    let g = p.gradient(&seeds, n_params)?;
+    let dirs = [("wi", wi, Kind::Direction), ("wo", wo, Kind::Direction)];
+    batch(py, &dirs, stack.channels * (n_params + 1), |r, o| g(vec3(&r[0]), vec3(&r[1]), o))
 }
 
 /// The Dirac (mirror) reflection at wo per channel: (..., channels).

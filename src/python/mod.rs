@@ -49,6 +49,7 @@ fn _lamina(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(api::sample_stack, m)?)?;
     m.add_function(wrap_pyfunction!(api::pdf, m)?)?;
     m.add_function(wrap_pyfunction!(api::specular, m)?)?;
+    m.add_function(wrap_pyfunction!(api::eval_grad, m)?)?;
     m.add_function(wrap_pyfunction!(api::reference_sample, m)?)?;
     m.add_function(wrap_pyfunction!(primitives::steinberg_lut, m)?)?;
     m.add_function(wrap_pyfunction!(primitives::fresnel_dielectric, m)?)?;

@@ -307,10 +307,27 @@ struct Operators {
     t_up: Op,
 }
 
-/// The operators of interface b of channel stack `s`.
-fn interface(cells: &Cells, s: &ChannelStack, b: usize) -> Operators {
+/// Which paths the operators carry: all of them, or only the Dirac part (the paths that meet smooth boundaries only
+/// and cross the slabs unscattered), which the table leaves to the model's exact `specular`.
+#[derive(Clone, Copy, PartialEq)]
+enum Paths {
+    All,
+    Dirac,
+}
+
+/// Operators that carry nothing.
+fn none() -> Operators {
+    let z = every_order(zeros());
+    Operators { r_top: z.clone(), r_bottom: z.clone(), t_down: z.clone(), t_up: z }
+}
+
+/// The operators of interface b of channel stack `s`, for `paths`.
+fn interface(cells: &Cells, s: &ChannelStack, b: usize, paths: Paths) -> Operators {
     let it = &s.interfaces[b];
     let eta = it.eta;
+    if paths == Paths::Dirac && !s.is_delta(b) {
+        return none();
+    }
     if s.is_delta(b) {
         return Operators {
             r_top: every_order(diagonal(|j| cells.average(j, |mu| fresnel::dielectric(mu, eta)))),
@@ -346,9 +363,12 @@ fn interface(cells: &Cells, s: &ChannelStack, b: usize) -> Operators {
     layer
 }
 
-/// The base's reflection operator (light from above).
-fn base(cells: &Cells, s: &ChannelStack) -> Op {
+/// The base's reflection operator (light from above), for `paths`.
+fn base(cells: &Cells, s: &ChannelStack, paths: Paths) -> Op {
     let b = s.interfaces.len();
+    if paths == Paths::Dirac && !s.is_delta(b) {
+        return every_order(zeros());
+    }
     match &s.base {
         Base::Conductor { mf, eta, k } if mf.is_smooth() => {
             every_order(diagonal(|j| cells.average(j, |mu| fresnel::conductor(mu, *eta, *k))))
@@ -366,15 +386,15 @@ fn base(cells: &Cells, s: &ChannelStack) -> Op {
     }
 }
 
-/// The operators of slab i: None when it does nothing (no thickness or no extinction); Interrupted when asked to
-/// stop during its doublings.
-fn slab(cells: &Cells, s: &ChannelStack, i: usize) -> Result<Option<Operators>> {
+/// The operators of slab i for `paths` (the Dirac part is its unscattered beam): None when it does nothing (no
+/// thickness or no extinction); Interrupted when asked to stop during its doublings.
+fn slab(cells: &Cells, s: &ChannelStack, i: usize, paths: Paths) -> Result<Option<Operators>> {
     let sl = &s.slabs[i];
     let tau = (sl.sigma_a + sl.sigma_s) * sl.thickness;
     if tau == 0.0 {
         return Ok(None);
     }
-    if sl.sigma_s == 0.0 {
+    if sl.sigma_s == 0.0 || paths == Paths::Dirac {
         let t = every_order(diagonal(|j| cells.average(j, |mu| (-tau / mu).exp())));
         let r = every_order(zeros());
         return Ok(Some(Operators { r_top: r.clone(), r_bottom: r, t_down: t.clone(), t_up: t }));
@@ -439,19 +459,19 @@ fn over(a: &Operators, r: Op, with_top: bool) -> Op {
 }
 
 /// The reflection of channel stack `s` less its top boundary's own reflection (which the model evaluates exactly),
-/// order by order; Interrupted when asked to stop (interrupt.rs), checked layer by layer.
-fn reflection_below_top(cells: &Cells, s: &ChannelStack) -> Result<Op> {
+/// order by order, for `paths`; Interrupted when asked to stop (interrupt.rs), checked layer by layer.
+fn reflection_below_top(cells: &Cells, s: &ChannelStack, paths: Paths) -> Result<Op> {
     let n = s.interfaces.len();
     if n == 0 {
         return Ok(every_order(zeros()));
     }
-    let mut r = base(cells, s);
+    let mut r = base(cells, s, paths);
     for i in (0..n).rev() {
         crate::interrupt::check()?;
-        if let Some(sl) = slab(cells, s, i)? {
+        if let Some(sl) = slab(cells, s, i, paths)? {
             r = over(&sl, r, true);
         }
-        r = over(&interface(cells, s, i), r, i > 0);
+        r = over(&interface(cells, s, i, paths), r, i > 0);
     }
     Ok(r)
 }
@@ -471,7 +491,8 @@ fn node_cells(k: usize) -> Vec<(usize, f64)> {
 /// the travel directions (φ = π − the azimuth between wi and wo), per channel: index (pair(i, o) · N_PHI + p) ·
 /// channels + c. A node's Fourier coefficients are those of the cells beside it, averaged; at θ = 0 only order 0
 /// remains (f does not depend on the azimuth there). Reciprocal (the average of (i, o) and (o, i), stored once);
-/// the ringing of the truncated series below zero is clipped. Interrupted when asked to stop (interrupt.rs).
+/// the ringing of the truncated series below zero is clipped. Without the Dirac part below a smooth top
+/// (`ChannelStack::dirac_reflectance`, which the model adds exactly). Interrupted when asked to stop (interrupt.rs).
 pub fn tabulate(stack: &Stack, surface: Microsurface) -> Result<Vec<f32>> {
     let cells = Cells::new();
     let (n, ch) = (N_THETA, stack.channels);
@@ -493,7 +514,14 @@ pub fn tabulate(stack: &Stack, surface: Microsurface) -> Result<Vec<f32>> {
             continue;
         }
         done.push((key, c));
-        let r = reflection_below_top(&cells, &ChannelStack::new(stack, c, surface))?;
+        let s = ChannelStack::new(stack, c, surface);
+        let mut r = reflection_below_top(&cells, &s, Paths::All)?;
+        if s.is_delta(0) {
+            // Below a smooth top, smooth boundaries reflect Dirac lobes that cells would blur: the model adds them
+            // exactly (`specular`), so the table keeps the rest.
+            let dirac = reflection_below_top(&cells, &s, Paths::Dirac)?;
+            r.iter_mut().zip(&dirac).for_each(|(r, d)| r.iter_mut().zip(d).for_each(|(r, d)| *r -= d));
+        }
         // ā_m(o, j) = S_m[o][j] / (π (1 + δ_m0) w_j), symmetrized.
         let a = |m: usize, o: usize, j: usize| r[m][o * n + j] / (PI * if m == 0 { 2.0 } else { 1.0 } * cells.w[j]);
         let coefficient = |m: usize, o: usize, j: usize| 0.5 * (a(m, o, j) + a(m, j, o));
@@ -571,7 +599,7 @@ mod tests {
         // f = ρ/π: the cell-averaged Fourier coefficient ā₀ is ρ/π everywhere, every other order 0.
         let s = channel(vec![Layer::Diffuse { albedo: vec![0.7], roughness: 0.0 }]);
         let cells = Cells::new();
-        let op = base(&cells, &s);
+        let op = base(&cells, &s, Paths::All);
         for (m, order) in op.iter().enumerate() {
             for o in 0..N_THETA {
                 for j in 0..N_THETA {
@@ -591,7 +619,7 @@ mod tests {
         let cells = Cells::new();
         for (tau, g) in [(0.1, 0.0), (1.0, -0.3), (4.0, 0.6)] {
             let s = channel(vec![slab_layer(0.0, tau, 1.0, g), Layer::Diffuse { albedo: vec![0.0], roughness: 0.0 }]);
-            let ops = slab(&cells, &s, 0).unwrap().unwrap();
+            let ops = slab(&cells, &s, 0, Paths::All).unwrap().unwrap();
             for (r, t) in energies(&cells, &ops.r_top).iter().zip(energies(&cells, &ops.t_down)) {
                 assert!((r + t - 1.0).abs() < 5e-4, "τ = {tau}, g = {g}: R + T = {}", r + t);
             }
@@ -603,7 +631,7 @@ mod tests {
         // σs = 0: no reflection, and each cell transmits its average of e^{−τ/μ} straight down.
         let cells = Cells::new();
         let s = channel(vec![slab_layer(0.8, 0.0, 0.5, 0.0), Layer::Diffuse { albedo: vec![0.0], roughness: 0.0 }]);
-        let ops = slab(&cells, &s, 0).unwrap().unwrap();
+        let ops = slab(&cells, &s, 0, Paths::All).unwrap().unwrap();
         let t = energies(&cells, &ops.t_down);
         for (j, t) in t.iter().enumerate() {
             let exact = cells.average(j, |mu| (-0.4 / mu).exp());
@@ -619,7 +647,7 @@ mod tests {
         let cells = Cells::new();
         let s =
             channel(vec![dielectric(1.5, 0.0, 0.0, 0.0, 0.0), Layer::Diffuse { albedo: vec![0.0], roughness: 0.0 }]);
-        let ops = interface(&cells, &s, 0);
+        let ops = interface(&cells, &s, 0, Paths::All);
         let (r, t) = (energies(&cells, &ops.r_top), energies(&cells, &ops.t_down));
         for j in 0..N_THETA {
             let excess = r[j] + t[j] - 1.0;

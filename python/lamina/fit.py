@@ -1,0 +1,152 @@
+"""From measurements back to a stack: `fit` finds the free parameters (lamina.Param) of a template stack that explain
+measured f under a model, by SciPy's trust-region least squares with lamina's exact Jacobian (Stack.eval_grad), from
+several starts; standard errors come from the Jacobian at the optimum. `lamina.models()` lists which models have
+gradients (`.gradients`).
+"""
+
+from __future__ import annotations
+
+import math
+import warnings
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .measured import Samples, _checked
+from .stack import Stack
+
+#: Bands of incidence (degrees) the residual is reported in.
+BANDS = ((0.0, 60.0), (60.0, 80.0), (80.0, 90.0))
+LOSSES = ("linear", "cosine", "log")
+
+
+@dataclass(frozen=True)
+class FitResult:
+    """What `fit` found: `stack` (the template with its Params bound), `params` and `stderr` (name -> value; the
+    standard errors from the Jacobian at the optimum, assuming independent noise of equal variance in the
+    residuals), `residual` (band of incidence "0-60", "60-80", "80-90" -> relative L1 error Σ|f − measured| /
+    Σ measured there, None where no sample falls), `cost` (½ Σ residual² of the best start), `converged` and the
+    optimiser's `message`, `history` (the cost at each evaluation, per start) and `model`."""
+
+    stack: Stack
+    params: dict
+    stderr: dict
+    residual: dict
+    cost: float
+    converged: bool
+    message: str
+    model: str
+    history: list = field(repr=False)
+
+
+def _residuals(f, grad, measured, weights, loss):
+    """The residuals r and their Jacobian dr/dp (n·channels rows) of a loss: linear (f − m) w, cosine-weighted
+    (f − m) cos θo w (what a renderer integrates), or log (log(1 + f) − log(1 + m)) w."""
+    if loss == "log":
+        r = (np.log1p(f) - np.log1p(measured)) * weights
+        j = grad / (1.0 + f)[..., None] * weights[..., None]
+    else:
+        r = (f - measured) * weights
+        j = grad * weights[..., None]
+    return r.ravel(), j.reshape(-1, grad.shape[-1])
+
+
+def fit(
+    template: Stack,
+    wi,
+    wo,
+    measured,
+    model: str = "microfacet",
+    *,
+    weights=None,
+    loss: str = "linear",
+    starts: int = 4,
+    seed: int = 0,
+    progress=None,
+    **options,
+) -> FitResult:
+    """Fits every free parameter (lamina.Param) of `template` to `measured` f (n, channels; no cosine, 1/sr, like
+    `Stack.eval`'s output) at direction pairs wi, wo (n, 3), under `model` with its `options`. `measured` may also be
+    a `lamina.measured.Samples` (then wi and wo are None). `weights` (n,) or (n, channels) scale the residuals;
+    `loss` is "linear", "cosine" (residuals × cos θo) or "log". Each Param bounds its parameter; the first start is
+    the Params' starts, the others uniform in the bounds (seeded). `progress` shows a bar over the starts (default:
+    with more than 4). A fit that does not converge says so (a RuntimeWarning with its last cost, and
+    `converged` False). Needs SciPy (`pip install lamina[fit]`)."""
+    from scipy.optimize import least_squares
+
+    if not isinstance(template, Stack) or not template.params:
+        raise ValueError("fit needs a template stack with at least one free parameter (lamina.Param)")
+    if isinstance(measured, Samples):
+        if wi is not None or wo is not None:
+            raise ValueError("with measured given as Samples, wi and wo must be None (the samples carry them)")
+        wi, wo, measured = measured.wi, measured.wo, measured.f
+    wi, wo, measured = _checked(wi, wo, measured)
+    if loss not in LOSSES:
+        raise ValueError(f"loss must be one of {list(LOSSES)}, got {loss!r}")
+    if not isinstance(starts, int) or starts < 1:
+        raise ValueError(f"starts must be a positive integer, got {starts!r}")
+    params = template.params
+    lows, highs = np.array([p.low for p in params]), np.array([p.high for p in params])
+    channels = template.bind(**{p.name: p.start for p in params}).eval(wi[:1], wo[:1], model, **options).shape[-1]
+    if measured.shape[1] != channels:
+        raise ValueError(f"measured must have {channels} channels (the stack's), got {measured.shape[1]}")
+    w = np.ones_like(measured) if weights is None else np.asarray(weights, dtype=float)
+    try:
+        w = np.broadcast_to(w[:, None] if w.ndim == 1 else w, measured.shape)
+    except (ValueError, IndexError):
+        raise ValueError(f"weights must be (n,) or (n, channels) = {measured.shape}, got {np.shape(weights)}") from None
+    if not np.all(np.isfinite(w)) or np.any(w < 0):
+        raise ValueError("weights must be finite and ≥ 0")
+    if loss == "cosine":
+        w = w * wo[:, 2:3]
+
+    history = []
+
+    def evaluate(x):
+        f, grad = template.eval_grad(wi, wo, model, **dict(zip((p.name for p in params), x)), **options)
+        return _residuals(f, grad, measured, w, loss)
+
+    def run(x0):
+        costs = []
+        cache = {}
+
+        def at(x):
+            key = x.tobytes()
+            if key not in cache:
+                cache.clear()
+                cache[key] = evaluate(x)
+                costs.append(0.5 * float(cache[key][0] @ cache[key][0]))
+            return cache[key]
+
+        result = least_squares(
+            lambda x: at(x)[0], x0, jac=lambda x: at(x)[1], bounds=(lows, highs), x_scale="jac", method="trf"
+        )
+        history.append(costs)
+        return result
+
+    rng = np.random.default_rng(seed)
+    x0s = [np.array([p.start for p in params])] + [rng.uniform(lows, highs) for _ in range(starts - 1)]
+    show = starts > 4 if progress is None else bool(progress)
+    if show:
+        from tqdm.auto import tqdm
+
+        x0s = tqdm(x0s, desc="fit starts", unit="start")
+    best = min((run(x0) for x0 in x0s), key=lambda r: r.cost)
+    values = {p.name: float(v) for p, v in zip(params, best.x)}
+    # Standard errors: s² (JᵀJ)⁻¹ with s² the residual variance per degree of freedom.
+    m, k = best.fun.size, len(params)
+    s2 = 2.0 * best.cost / max(m - k, 1)
+    cov = s2 * np.linalg.pinv(best.jac.T @ best.jac)
+    stderr = {p.name: float(math.sqrt(max(cov[i, i], 0.0))) for i, p in enumerate(params)}
+    stack = template.bind(**values)
+    f = stack.eval(wi, wo, model, **options)
+    theta = np.degrees(np.arccos(np.clip(wi[:, 2], -1.0, 1.0)))
+    residual = {}
+    for lo, hi in BANDS:
+        band = (theta >= lo) & (theta < hi)
+        total = measured[band].sum()
+        residual[f"{lo:.0f}-{hi:.0f}"] = float(np.abs(f[band] - measured[band]).sum() / total) if total > 0 else None
+    converged = bool(best.success) and best.status > 0
+    if not converged:
+        warnings.warn(f"fit did not converge ({best.message}); last cost {best.cost:.6g}", RuntimeWarning, stacklevel=2)
+    return FitResult(stack, values, stderr, residual, float(best.cost), converged, str(best.message), model, history)

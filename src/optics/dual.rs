@@ -1,0 +1,217 @@
+//! Forward-mode automatic differentiation (Griewank and Walther 2008, ch. 3): a `Dual<N>` is a value with its
+//! derivatives with respect to N parameters. The optics primitives that take layer parameters are generic over
+//! `Real` (f64, or a Dual), so that one function serves the evaluation and its parameter gradients; directions stay
+//! f64 (no parameter moves them). Branches read the value.
+
+use std::ops::{Add, Div, Mul, Neg, Sub};
+
+/// A real number as the generic primitives compute with it: f64, or a Dual carrying derivatives.
+pub trait Real:
+    Copy
+    + From<f64>
+    + Add<Output = Self>
+    + Sub<Output = Self>
+    + Mul<Output = Self>
+    + Div<Output = Self>
+    + Neg<Output = Self>
+    + Add<f64, Output = Self>
+    + Sub<f64, Output = Self>
+    + Mul<f64, Output = Self>
+    + Div<f64, Output = Self>
+{
+    fn value(self) -> f64;
+    fn sqrt(self) -> Self;
+    fn exp(self) -> Self;
+    fn erf(self) -> Self;
+    fn sin_cos(self) -> (Self, Self);
+    /// max(self, floor), floor a constant.
+    fn max_c(self, floor: f64) -> Self;
+}
+
+impl Real for f64 {
+    #[inline(always)]
+    fn value(self) -> f64 {
+        self
+    }
+    #[inline(always)]
+    fn sqrt(self) -> f64 {
+        f64::sqrt(self)
+    }
+    #[inline(always)]
+    fn exp(self) -> f64 {
+        f64::exp(self)
+    }
+    #[inline(always)]
+    fn erf(self) -> f64 {
+        libm::erf(self)
+    }
+    #[inline(always)]
+    fn sin_cos(self) -> (f64, f64) {
+        f64::sin_cos(self)
+    }
+    #[inline(always)]
+    fn max_c(self, floor: f64) -> f64 {
+        self.max(floor)
+    }
+}
+
+/// A value and its derivatives with respect to N parameters.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Dual<const N: usize> {
+    pub v: f64,
+    pub d: [f64; N],
+}
+
+impl<const N: usize> Dual<N> {
+    /// `v` with derivative `dv` with respect to parameter `i` (0 for the others).
+    pub fn seeded(v: f64, i: usize, dv: f64) -> Self {
+        let mut d = [0.0; N];
+        d[i] = dv;
+        Dual { v, d }
+    }
+
+    /// The chain rule: g(self) given g(v) and g'(v).
+    #[inline(always)]
+    fn chain(self, g: f64, dg: f64) -> Self {
+        Dual { v: g, d: self.d.map(|x| x * dg) }
+    }
+}
+
+impl<const N: usize> From<f64> for Dual<N> {
+    fn from(v: f64) -> Self {
+        Dual { v, d: [0.0; N] }
+    }
+}
+
+impl<const N: usize> Add for Dual<N> {
+    type Output = Self;
+    #[inline(always)]
+    fn add(self, o: Self) -> Self {
+        Dual { v: self.v + o.v, d: std::array::from_fn(|i| self.d[i] + o.d[i]) }
+    }
+}
+
+impl<const N: usize> Sub for Dual<N> {
+    type Output = Self;
+    #[inline(always)]
+    fn sub(self, o: Self) -> Self {
+        Dual { v: self.v - o.v, d: std::array::from_fn(|i| self.d[i] - o.d[i]) }
+    }
+}
+
+impl<const N: usize> Mul for Dual<N> {
+    type Output = Self;
+    #[inline(always)]
+    #[allow(clippy::suspicious_arithmetic_impl)] // the product rule
+    fn mul(self, o: Self) -> Self {
+        Dual { v: self.v * o.v, d: std::array::from_fn(|i| self.d[i] * o.v + self.v * o.d[i]) }
+    }
+}
+
+impl<const N: usize> Div for Dual<N> {
+    type Output = Self;
+    #[inline(always)]
+    #[allow(clippy::suspicious_arithmetic_impl)] // the quotient rule
+    fn div(self, o: Self) -> Self {
+        let r = 1.0 / o.v;
+        let v = self.v * r;
+        Dual { v, d: std::array::from_fn(|i| (self.d[i] - v * o.d[i]) * r) }
+    }
+}
+
+impl<const N: usize> Neg for Dual<N> {
+    type Output = Self;
+    #[inline(always)]
+    fn neg(self) -> Self {
+        Dual { v: -self.v, d: self.d.map(|x| -x) }
+    }
+}
+
+impl<const N: usize> Add<f64> for Dual<N> {
+    type Output = Self;
+    #[inline(always)]
+    fn add(self, c: f64) -> Self {
+        Dual { v: self.v + c, d: self.d }
+    }
+}
+
+impl<const N: usize> Sub<f64> for Dual<N> {
+    type Output = Self;
+    #[inline(always)]
+    fn sub(self, c: f64) -> Self {
+        Dual { v: self.v - c, d: self.d }
+    }
+}
+
+impl<const N: usize> Mul<f64> for Dual<N> {
+    type Output = Self;
+    #[inline(always)]
+    fn mul(self, c: f64) -> Self {
+        Dual { v: self.v * c, d: self.d.map(|x| x * c) }
+    }
+}
+
+impl<const N: usize> Div<f64> for Dual<N> {
+    type Output = Self;
+    #[inline(always)]
+    fn div(self, c: f64) -> Self {
+        self * (1.0 / c)
+    }
+}
+
+impl<const N: usize> Real for Dual<N> {
+    fn value(self) -> f64 {
+        self.v
+    }
+    fn sqrt(self) -> Self {
+        let s = self.v.sqrt();
+        // d√x = dx / (2√x); at 0 the derivative is unbounded, taken as 0 (√ of a clamped square, e.g. a grazing sine).
+        self.chain(s, if s > 0.0 { 0.5 / s } else { 0.0 })
+    }
+    fn exp(self) -> Self {
+        let e = self.v.exp();
+        self.chain(e, e)
+    }
+    fn erf(self) -> Self {
+        // d erf(x)/dx = 2/√π e^{−x²}.
+        self.chain(libm::erf(self.v), std::f64::consts::FRAC_2_SQRT_PI * (-self.v * self.v).exp())
+    }
+    fn sin_cos(self) -> (Self, Self) {
+        let (s, c) = self.v.sin_cos();
+        (self.chain(s, c), self.chain(c, -s))
+    }
+    fn max_c(self, floor: f64) -> Self {
+        if self.v >= floor {
+            self
+        } else {
+            Dual::from(floor)
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A function of three parameters, written once and evaluated in f64 and in Dual<3>.
+    fn g<T: Real>(x: T, y: T, z: T) -> T {
+        let (s, c) = (x * y).sin_cos();
+        (x * x + 1.0).sqrt() * (-y).exp() / (z + 2.0) + (z * 0.7).erf() * s - c * 3.0
+    }
+
+    #[test]
+    fn dual_derivatives_are_central_differences() {
+        let p = [0.3, -0.8, 1.1];
+        let seed = |i: usize| Dual::<3>::seeded(p[i], i, 1.0);
+        let d = g(seed(0), seed(1), seed(2));
+        assert_eq!(d.v, g(p[0], p[1], p[2]));
+        for i in 0..3 {
+            let h = 1e-6;
+            let (mut a, mut b) = (p, p);
+            a[i] += h;
+            b[i] -= h;
+            let fd = (g(a[0], a[1], a[2]) - g(b[0], b[1], b[2])) / (2.0 * h);
+            assert!((d.d[i] - fd).abs() < 1e-8 * (1.0 + fd.abs()), "{i}: {} vs {fd}", d.d[i]);
+        }
+    }
+}
