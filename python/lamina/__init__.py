@@ -9,7 +9,7 @@ Evaluate f(wi, wo) of a layer stack on NumPy arrays:
 Conventions (local frame, z = normal, directions pointing away, f without the cosine): docs/conventions.md.
 """
 
-from . import atlas, dask, materials, measured, mitsuba, oat, optics, plot, reference
+from . import atlas, dask, family, materials, measured, mitsuba, oat, optics, plot, reference
 from ._lamina import __version__
 from .catalogue import MODELS, models
 from .choose import Choice, choose
@@ -43,6 +43,7 @@ __all__ = [
     "to_xyz",
     "to_srgb",
     "xyz_weights",
+    "family",
     "materials",
     "measured",
     "optics",

@@ -15,6 +15,7 @@ from ._arrays import broadcast
 from .catalogue import model as _model
 from .catalogue import options_doc
 from .choose import choose
+from .family import eval_family
 from .layers import Conductor, Dielectric, Diffuse, Layer, bind_layer, layer_params
 
 _LAYERS = (Dielectric, Conductor, Diffuse)
@@ -141,6 +142,10 @@ class Stack:
         (nm); float32 when both inputs are float32, float64 otherwise. Units: 1/sr. Dirac (specular) lobes of smooth
         interfaces are not part of f: see `specular`.
 
+        A template stack (holding lamina.Param) is a family: each Param's values per element are keyword arguments
+        (arrays broadcast with the directions), and the family is interpolated on a grid of stacks chosen by measured
+        error (lamina.family: within 1% of the model at the explicit stack).
+
         Keyword arguments are the model's options and its per-element inputs (arrays broadcast with the
         directions); anything else is a TypeError. model="reference" returns the mean of `Stack.reference` with
         `samples` paths per pair. Tables are built on the first call and kept for the next calls with the same stack
@@ -157,6 +162,13 @@ class Stack:
 
         Models, their options (default, allowed values) and per-element inputs:
         """
+        if self.params:
+            if model in ("auto", "reference"):
+                raise ValueError(
+                    f"a family of stacks (a template with lamina.Param) takes an analytic model, not {model!r}"
+                )
+            values = {p.name: kwargs.pop(p.name) for p in self.params if p.name in kwargs}
+            return eval_family(self, wi, wo, model, values, kwargs)
         if model == "auto":
             c = choose(self, 0.05 if tolerance is None else tolerance, wi)
             samples = c.options.get("samples", samples)
