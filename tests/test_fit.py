@@ -82,8 +82,10 @@ def test_gradients_refuse_what_a_model_does_not_differentiate():
         coated.eval_grad([0, 0, 1], [0, 0, 1], "belcour")
     with pytest.raises(ValueError, match="this stack has no lamina.Param"):
         Stack([metal("Cu", 0.3)]).eval_grad([0, 0, 1], [0, 0, 1])
-    with pytest.raises(ValueError, match=r"free parameters \['n'\]: give their values"):
+    with pytest.raises(ValueError, match=r"the stack is a family over \['n'\]: give each one's values per element"):
         coated.eval([0, 0, 1], [0, 0, 1], "belcour")
+    with pytest.raises(ValueError, match=r"free parameters \['n'\]: give their values"):
+        coated.specular([0, 0, 1], "belcour")
     with pytest.raises(ValueError, match=r"n must be a number in \[1.2, 2.0\]"):
         coated.bind(n=2.5)
     with pytest.raises(ValueError, match=r"unknown \['m'\], missing \['n'\]"):
