@@ -9,7 +9,7 @@ VPY := $(VENV)/bin/python
 # fails without one unless LAMINA_SKIP_GPU=1 says to skip it.
 LLVM = DRJIT_LIBLLVM_PATH="$$($(PY) tests/libllvm.py)"
 
-.PHONY: demo test lint wheel-test develop venv test-deps system-deps rust-test py-test bench validation reference reliability fuzz readme chart population atlas oat notebooks clean
+.PHONY: demo test lint wheel-test develop venv test-deps system-deps rust-test py-test bench validation reference reliability fuzz readme chart population atlas oat notebooks fit clean
 
 $(VPY):
 	$(PY) -m venv $(VENV)
@@ -128,6 +128,11 @@ oat: develop
 # population (whose references `make population` caches), the reference's, and the GPU path's.
 chart: develop
 	$(VPY) scripts/speed_accuracy.py
+
+# docs/fit.md and docs/fit.png: fit_models on Mitsuba 3's roughplastic and plastic, recovery of known parameters,
+# and a fit's speed (about a minute on 2 cores).
+fit: develop test-deps
+	$(LLVM) $(VPY) scripts/fit_report.py
 
 # Regenerates the README's model table from the catalogue (lamina.models()).
 readme: develop

@@ -28,7 +28,7 @@ def execute(path: Path, timeout: int = 900):
 
 
 def main() -> None:
-    for path in NOTEBOOKS if len(sys.argv) < 2 else [Path(p) for p in sys.argv[1:]]:
+    for path in NOTEBOOKS if len(sys.argv) < 2 else [Path(p).resolve() for p in sys.argv[1:]]:
         nb = execute(path)
         nbformat.write(nb, path)
         print(f"executed {path.relative_to(ROOT)}", file=sys.stderr)

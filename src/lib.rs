@@ -1,7 +1,7 @@
 //! lamina: layered BRDF models for rendering research.
 //!
 //! Layout, each module using only those before it (tests/test_layout.py checks that no `use crate::` closes a cycle):
-//! - `error`, `interrupt` (Ctrl-C in long work), `cache` (the checked on-disk cache), `quadrature`, `sampling` (random numbers, direction sampling, MIS), `engine` (the float32 lane engine), `optics` (Fresnel, microfacet
+//! - `error`, `interrupt` (Ctrl-C in long work), `cache` (the checked on-disk cache), `dual` (forward-mode derivatives), `quadrature`, `sampling` (random numbers, direction sampling, MIS), `engine` (the float32 lane engine), `optics` (Fresnel, microfacet
 //!   distributions, diffuse lobes, Jacobians), `bsdf` (single rough interfaces), `stack` (the layer stack);
 //! - `transport`: a stack's boundaries and slabs as light transport sees them, one channel at a time;
 //! - `tables`: lamina's precomputed tables (FGD, Steinberg's, Elek's) and the adding-doubling solver;
@@ -17,6 +17,7 @@
 pub mod bsdf;
 pub mod cache;
 pub mod device;
+pub mod dual;
 pub mod engine;
 pub mod error;
 #[cfg(feature = "gpu")]

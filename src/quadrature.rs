@@ -1,5 +1,7 @@
 //! Numerical quadrature shared by the tables and the models.
 
+use crate::dual::Real;
+
 /// Nodes and weights of n-point Gauss–Legendre quadrature on [-1, 1] (Newton iteration on P_n).
 pub fn gauss_legendre(n: usize) -> Vec<(f64, f64)> {
     (1..=n)
@@ -22,16 +24,18 @@ pub fn gauss_legendre(n: usize) -> Vec<(f64, f64)> {
         .collect()
 }
 
-/// Integral of `f` over [a, b] by composite 24-point Gauss–Legendre quadrature over `pieces` sub-intervals.
-pub fn integrate(f: impl Fn(f64) -> f64, a: f64, b: f64, pieces: usize) -> f64 {
+/// Integral of `f` over [a, b] by composite 24-point Gauss–Legendre quadrature over `pieces` sub-intervals (in f64,
+/// or in Duals where the bounds or the integrand carry derivatives).
+pub fn integrate<T: Real>(f: impl Fn(T) -> T, a: T, b: T, pieces: usize) -> T {
     let nodes = gauss_legendre(24);
     let h = (b - a) / pieces as f64;
+    let zero = T::from(0.0);
     (0..pieces)
         .map(|p| {
-            let mid = a + (p as f64 + 0.5) * h;
-            nodes.iter().map(|&(x, w)| w * f(mid + 0.5 * h * x)).sum::<f64>() * 0.5 * h
+            let mid = a + h * (p as f64 + 0.5);
+            nodes.iter().fold(zero, |s, &(x, w)| s + f(mid + h * 0.5 * x) * w) * h * 0.5
         })
-        .sum()
+        .fold(zero, |s, v| s + v)
 }
 
 #[cfg(test)]

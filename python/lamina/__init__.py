@@ -13,7 +13,7 @@ from . import atlas, dask, family, materials, measured, mitsuba, oat, optics, pl
 from ._lamina import __version__
 from .catalogue import MODELS, models
 from .choose import Choice, choose
-from .fit import FitResult, fit
+from .fit import FitResult, ModelFits, fit, fit_models
 from .layers import Conductor, Dielectric, Diffuse, Param
 from .optics import jacobian_reflect, jacobian_refract
 from .pictures import gallery
@@ -27,7 +27,9 @@ __all__ = [
     "choose",
     "Choice",
     "fit",
+    "fit_models",
     "FitResult",
+    "ModelFits",
     "atlas",
     "dask",
     "mitsuba",

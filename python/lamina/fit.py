@@ -1,12 +1,14 @@
 """From measurements back to a stack: `fit` finds the free parameters (lamina.Param) of a template stack that explain
 measured f under a model, by SciPy's trust-region least squares with lamina's exact Jacobian (Stack.eval_grad), from
-several starts; standard errors come from the Jacobian at the optimum. `lamina.models()` lists which models have
-gradients (`.gradients`).
+several starts; standard errors come from the Jacobian at the optimum. `fit_models` fits every model that can and
+tabulates how well each explains the data, at what cost. `lamina.models()` lists which models have gradients
+(`.gradients`).
 """
 
 from __future__ import annotations
 
 import math
+import time
 import warnings
 from dataclasses import dataclass, field
 
@@ -139,7 +141,7 @@ def fit(
     cov = s2 * np.linalg.pinv(best.jac.T @ best.jac)
     stderr = {p.name: float(math.sqrt(max(cov[i, i], 0.0))) for i, p in enumerate(params)}
     stack = template.bind(**values)
-    f = stack.eval(wi, wo, model, **options)
+    f, _ = template.eval_grad(wi, wo, model, **values, **options)  # the f that was fitted (belcour: per evaluation)
     theta = np.degrees(np.arccos(np.clip(wi[:, 2], -1.0, 1.0)))
     residual = {}
     for lo, hi in BANDS:
@@ -150,3 +152,102 @@ def fit(
     if not converged:
         warnings.warn(f"fit did not converge ({best.message}); last cost {best.cost:.6g}", RuntimeWarning, stacklevel=2)
     return FitResult(stack, values, stderr, residual, float(best.cost), converged, str(best.message), model, history)
+
+
+@dataclass(frozen=True)
+class ModelFits:
+    """What `fit_models` found: `fits` (model -> FitResult, best first), `costs` (model -> ns per evaluation of
+    the fitted stack by `Stack.eval`, measured on the data's directions), and `skipped` (model -> why it could not
+    fit this template). `rows()` is the table; `plot()` draws it."""
+
+    fits: dict
+    costs: dict
+    skipped: dict
+
+    def rows(self) -> list:
+        """One dict per fitted model, best first: model, residual per band, cost (½ Σ r²), ns per evaluation, the
+        parameters and their standard errors."""
+        return [
+            dict(
+                model=m,
+                **{f"residual {k}": v for k, v in r.residual.items()},
+                cost=r.cost,
+                ns=self.costs[m],
+                params=r.params,
+                stderr=r.stderr,
+                converged=r.converged,
+            )
+            for m, r in self.fits.items()
+        ]
+
+    def table(self) -> str:
+        """The table in Markdown."""
+        bands = [f"{lo:.0f}-{hi:.0f}" for lo, hi in BANDS]
+        head = "| model | " + " | ".join(f"residual θi {b}°" for b in bands) + " | ns/eval | parameters (± 1 SE) |"
+        lines = [head, "|" + "---|" * (len(bands) + 3)]
+        for m, r in self.fits.items():
+            res = " | ".join("–" if r.residual[b] is None else f"{r.residual[b]:.2%}" for b in bands)
+            ps = ", ".join(f"{k} {v:.4g} ± {r.stderr[k]:.2g}" for k, v in r.params.items())
+            lines.append(f"| {m} | {res} | {self.costs[m]:.0f} | {ps} |")
+        lines += [f"| {m} | not fitted: {why} | | | |" for m, why in self.skipped.items()]
+        return "\n".join(lines)
+
+    def _repr_markdown_(self) -> str:
+        return self.table()
+
+    def __repr__(self) -> str:
+        return self.table()
+
+    def plot(self, ax=None):
+        """Residual per band of incidence against the cost per evaluation, one point per model (matplotlib)."""
+        import matplotlib.pyplot as plt
+
+        if ax is None:
+            _, ax = plt.subplots(figsize=(5.5, 3.6))
+        bands = [f"{lo:.0f}-{hi:.0f}" for lo, hi in BANDS]
+        for b, marker in zip(bands, "osD"):
+            pts = [(self.costs[m], r.residual[b], m) for m, r in self.fits.items() if r.residual[b] is not None]
+            if pts:
+                ax.scatter([p[0] for p in pts], [p[1] for p in pts], marker=marker, label=f"θi {b}°")
+        for m, r in self.fits.items():
+            ax.annotate(m, (self.costs[m], r.residual[bands[0]] or 0.0), textcoords="offset points", xytext=(5, 5))
+        ax.set(xscale="log", yscale="log", xlabel="ns per evaluation", ylabel="relative L1 residual")
+        ax.set_title("which model explains the measurement")
+        ax.legend(fontsize=8)
+        return ax
+
+
+def fit_models(template: Stack, wi, wo, measured, *, models=None, progress=None, **kwargs) -> ModelFits:
+    """Fits `template` under every model that has gradients for its free parameters (or those named in `models`)
+    with `fit` (the keyword arguments are fit's), and measures each fitted stack's cost per evaluation: the answer to
+    "which model explains my measurement, and at what cost". Models that cannot fit the template (no gradient by one
+    of its parameters, a stack they do not take) are listed in `skipped` with the reason."""
+    from .catalogue import models as catalogue
+
+    if isinstance(measured, Samples):
+        wi, wo, measured = measured.wi, measured.wo, measured.f
+    wi, wo, measured = _checked(wi, wo, measured)
+    names = [m.name for m in catalogue() if m.gradients] if models is None else list(models)
+    fits, costs, skipped = {}, {}, {}
+    show = len(names) > 1 if progress is None else bool(progress)
+    if show:
+        from tqdm.auto import tqdm
+
+        names = tqdm(names, desc="fit_models", unit="model")
+    for name in names:
+        try:
+            template.eval_grad(wi[:1], wo[:1], name)
+        except ValueError as e:
+            skipped[name] = str(e)
+            continue
+        fits[name] = fit(template, wi, wo, measured, name, **kwargs)
+        stack = fits[name].stack
+        stack.eval(wi, wo, name)  # prepared once, outside the timing
+        times = []
+        for _ in range(3):
+            t0 = time.perf_counter()
+            stack.eval(wi, wo, name)
+            times.append(time.perf_counter() - t0)
+        costs[name] = 1e9 * min(times) / len(wi)
+    order = sorted(fits, key=lambda m: fits[m].cost)
+    return ModelFits({m: fits[m] for m in order}, {m: costs[m] for m in order}, skipped)

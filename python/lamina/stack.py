@@ -86,7 +86,7 @@ class Stack:
 
     def eval_grad(self, wi, wo, model: str = "microfacet", *, wavelengths=None, **kwargs) -> tuple:
         """f(wi, wo) and its gradient by the template's free parameters (`params`), exact (forward-mode automatic
-        differentiation through the model: optics/dual.rs), at their values given as keyword arguments (default
+        differentiation through the model: src/dual.rs), at their values given as keyword arguments (default
         each Param's start); other keyword arguments are the model's options. Returns (f (..., channels),
         grad (..., channels, len(params))), float64. `lamina.models()` lists the fields each model differentiates
         by (`.gradients`); a parameter of another field is a ValueError."""
@@ -479,7 +479,7 @@ def _seeds(template: Stack, resolved: list) -> list:
     """The seeds of Stack.eval_grad (models::Seed: parameter, layer, field, channel or −1, scale): where each Param of
     `template` enters the model, at the bound values `resolved`. The model sees each interface's IOR and κ relative to
     the medium above it, so a dielectric's IOR enters its own interface (scale 1/η above) and the next one
-    (−η / ior²)."""
+    (−η / ior²), or a diffuse base's η against the outside (1/ext_ior)."""
     index = {p.name: i for i, p in enumerate(template.params)}
     channels = len(next(r[k] for r in resolved for k in ("ior", "albedo") if k in r))
     above = [template.ext_ior] * channels
@@ -491,13 +491,16 @@ def _seeds(template: Stack, resolved: list) -> list:
             if field == "ior" and r["kind"] != "diffuse":
                 for c in chans:
                     seeds.append((j, i, "ior", c, 1.0 / above[c]))
-                    below = resolved[i + 1] if i + 1 < len(resolved) else {"kind": "diffuse"}
-                    if r["kind"] == "dielectric" and below["kind"] != "diffuse":
+                    below = resolved[i + 1] if i + 1 < len(resolved) else None
+                    if r["kind"] == "dielectric" and below is not None and below["kind"] != "diffuse":
                         seeds.append((j, i + 1, "ior", c, -below["ior"][c] / r["ior"][c] ** 2))
                         if below["kind"] == "conductor":
                             seeds.append((j, i + 1, "k", c, -below["k"][c] / r["ior"][c] ** 2))
-            elif field == "k":
-                seeds += [(j, i, "k", c, 1.0 / above[c]) for c in chans]
+                    elif r["kind"] == "dielectric" and below is not None:
+                        # A diffuse base sees the medium above it against the outside.
+                        seeds.append((j, i + 1, "ior", c, 1.0 / template.ext_ior))
+            elif field in ("k", "sigma_a", "sigma_s"):
+                seeds += [(j, i, field, c, 1.0 / above[c] if field == "k" else 1.0) for c in chans]
             elif field == "albedo":
                 seeds += [(j, i, "albedo", c, 1.0) for c in chans]
             elif field == "roughness" and r["kind"] == "diffuse":

@@ -12,14 +12,14 @@
 
 use super::common::block::{eval_rows, simd_columns, BLOCK};
 use super::common::options::{DISTRIBUTION, FRESNEL, G2};
-use super::{Args, Field, Gradient, InputSpec, Model, ModelInfo, OptionSpec, Properties, Proposal, Seed, MAX_PARAMS};
+use super::{Args, Field, Gradient, InputSpec, Model, ModelInfo, OptionSpec, Properties, Proposal, Seed};
 use crate::bsdf;
+use crate::dual::Dual;
 use crate::engine::{self, Floats, Rows, V3};
 use crate::error::{value_error, Result};
 use crate::models::FitLanes;
 use crate::optics::diffuse;
 use crate::optics::distribution::{Distribution, G2Form, Microfacet};
-use crate::optics::dual::Dual;
 use crate::optics::fresnel::{self, FresnelForm};
 use crate::optics::lanes::{self, ConductorIor, Ggx};
 use crate::stack::{Layer, Stack};
@@ -168,7 +168,7 @@ fn gradient<const N: usize>(p: &Prepared, seeds: &[Seed]) -> Result<Gradient<'st
                 }
                 if let Some((geo, cos_h)) = bsdf::reflection_geometry(&mfd, g2, wi, wo) {
                     for c in 0..eta.len() {
-                        write(out, c, geo * fresnel::conductor(cos_h, eta[c], k[c]));
+                        write(out, c, geo * fresnel::conductor(Dual::from(cos_h), eta[c], k[c]));
                     }
                 }
             }))
@@ -192,18 +192,7 @@ fn gradient<const N: usize>(p: &Prepared, seeds: &[Seed]) -> Result<Gradient<'st
 
 impl Model for Prepared {
     fn gradient(&self, seeds: &[Seed], n_params: usize) -> Result<Gradient<'_>> {
-        // One Dual width per parameter count.
-        match n_params {
-            1 => gradient::<1>(self, seeds),
-            2 => gradient::<2>(self, seeds),
-            3 => gradient::<3>(self, seeds),
-            4 => gradient::<4>(self, seeds),
-            5 => gradient::<5>(self, seeds),
-            6 => gradient::<6>(self, seeds),
-            7 => gradient::<7>(self, seeds),
-            8 => gradient::<8>(self, seeds),
-            n => value_error(format!("gradients take 1 to {MAX_PARAMS} parameters, got {n}")),
-        }
+        super::dual_width!(n_params, gradient(self, seeds))
     }
 
     fn eval_block(&self, wi: [&[f64]; 3], wo: [&[f64]; 3], _: &super::Inputs, out: &mut [f64]) {

@@ -73,7 +73,7 @@ pub struct ModelInfo {
     pub options: &'static [OptionSpec],
     pub inputs: &'static [InputSpec],
     pub properties: Properties,
-    /// The layer fields (`Field::NAMES`) whose gradients `Model::gradient` returns, exact (forward-mode, optics/dual.rs).
+    /// The layer fields (`Field::NAMES`) whose gradients `Model::gradient` returns, exact (forward-mode, src/dual.rs).
     pub gradients: &'static [&'static str],
     /// The model for a stack, its options read from `Args` into the model's own options struct.
     pub prepare: fn(&Stack, &Args) -> Result<Box<dyn Model>>,
@@ -128,12 +128,27 @@ pub enum Field {
     Angle,
     Albedo,
     DiffuseRoughness,
+    Thickness,
+    SigmaA,
+    SigmaS,
+    G,
 }
 
 impl Field {
-    pub const NAMES: [&'static str; 7] =
-        ["ior", "k", "roughness_x", "roughness_y", "angle", "albedo", "diffuse_roughness"];
-    pub const ALL: [Field; 7] = [
+    pub const NAMES: [&'static str; 11] = [
+        "ior",
+        "k",
+        "roughness_x",
+        "roughness_y",
+        "angle",
+        "albedo",
+        "diffuse_roughness",
+        "thickness",
+        "sigma_a",
+        "sigma_s",
+        "g",
+    ];
+    pub const ALL: [Field; 11] = [
         Field::Ior,
         Field::K,
         Field::RoughnessX,
@@ -141,6 +156,10 @@ impl Field {
         Field::Angle,
         Field::Albedo,
         Field::DiffuseRoughness,
+        Field::Thickness,
+        Field::SigmaA,
+        Field::SigmaS,
+        Field::G,
     ];
 }
 
@@ -153,6 +172,27 @@ impl std::str::FromStr for Field {
 
 /// The most parameters one gradient takes.
 pub const MAX_PARAMS: usize = 8;
+
+/// `g::<N>(args)` with the Dual width N = `n` (1 to MAX_PARAMS): one monomorphised gradient per parameter count.
+macro_rules! dual_width {
+    ($n:expr, $g:ident($($arg:expr),*)) => {
+        match $n {
+            1 => $g::<1>($($arg),*),
+            2 => $g::<2>($($arg),*),
+            3 => $g::<3>($($arg),*),
+            4 => $g::<4>($($arg),*),
+            5 => $g::<5>($($arg),*),
+            6 => $g::<6>($($arg),*),
+            7 => $g::<7>($($arg),*),
+            8 => $g::<8>($($arg),*),
+            n => $crate::error::value_error(format!(
+                "gradients take 1 to {} parameters, got {n}",
+                $crate::models::MAX_PARAMS
+            )),
+        }
+    };
+}
+pub(crate) use dual_width;
 
 /// f and its parameter gradient at a direction pair (wi, wo): per channel, f and then ∂f/∂p of each parameter.
 pub type Gradient<'a> = Box<dyn Fn(DVec3, DVec3, &mut [f64]) + Sync + 'a>;

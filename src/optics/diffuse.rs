@@ -1,6 +1,6 @@
 //! Diffuse lobes: Lambert and the qualitative Oren–Nayar model.
 
-use super::dual::Real;
+use crate::dual::Real;
 use glam::DVec3;
 use std::f64::consts::FRAC_1_PI;
 

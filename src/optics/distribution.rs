@@ -2,8 +2,8 @@
 //! masking of Torrance–Sparrow, and visible-normal sampling. Directions are in the local frame (z = normal); each
 //! distribution carries the rotation `angle` of its tangent frame, along whose x axis `alpha_x` applies.
 
-use super::dual::Real;
 use super::to_tangent_frame;
+use crate::dual::Real;
 use glam::DVec3;
 use std::f64::consts::PI;
 
@@ -27,7 +27,7 @@ impl std::str::FromStr for Distribution {
 }
 
 /// A microfacet distribution: its roughnesses and tangent frame are f64, or Duals where a gradient is taken with
-/// respect to them (optics/dual.rs).
+/// respect to them (src/dual.rs).
 #[derive(Clone, Copy, Debug)]
 pub struct Microfacet<T = f64> {
     pub dist: Distribution,

@@ -1,7 +1,7 @@
 //! Fresnel reflectance: exact dielectric and conductor, Schlick, Lazányi–Szirmay-Kalos, and the
 //! hemispherical (diffuse) Fresnel reflectance.
 
-use super::dual::Real;
+use crate::dual::Real;
 
 /// The cosines of a refraction by Snell's law: (|cos_i| clamped to 1, the relative IOR seen from the incident side,
 /// cos_t), the IOR inverted for incidence from inside (cos_i < 0); None under total internal reflection.
@@ -37,10 +37,10 @@ pub fn dielectric_transmittance(cos_i: f64, eta: f64) -> f64 {
 /// Exact unpolarized conductor Fresnel reflectance for the relative complex IOR `eta` + i`k`
 /// (closed form of the Fresnel equations, e.g. Lagarde 2013 / Born & Wolf §14.2). `cos_i` in [0, 1].
 #[inline(always)]
-pub fn conductor<T: Real>(cos_i: f64, eta: T, k: T) -> T {
-    let cos_i = cos_i.clamp(0.0, 1.0);
+pub fn conductor<T: Real>(cos_i: T, eta: T, k: T) -> T {
+    let cos_i = cos_i.clamp_c(0.0, 1.0);
     let cos2 = cos_i * cos_i;
-    let sin2 = 1.0 - cos2;
+    let sin2 = T::from(1.0) - cos2;
     let t0 = eta * eta - k * k - sin2;
     let a2b2 = (t0 * t0 + T::from(4.0) * eta * eta * k * k).sqrt();
     // a² = (a2b2 + t0)/2, written as 2η²κ²/(a2b2 − t0) for t0 < 0 (total internal reflection when κ → 0), where the

@@ -3,6 +3,7 @@
 //! cos θi). Derived by the chain rule from ωo = 2(ωi·h)h − ωi (reflection) and ωt = −ωi/η + ((ωi·h)/η − cos θt)h
 //! (refraction), with h = (xh, yh, √(1 − xh² − yh²)).
 
+use crate::dual::Real;
 use glam::DVec3;
 
 fn incident(theta_i: f64) -> DVec3 {
@@ -36,15 +37,16 @@ pub fn refract(theta_i: f64, eta: f64, xh: f64, yh: f64) -> Option<[[f64; 2]; 2]
 }
 
 /// The scale of J_r at h = n (Belcour 2018, first order): J_r = 2 cos θi I.
-pub fn reflection_scale(cos_i: f64) -> f64 {
-    2.0 * cos_i
+pub fn reflection_scale<T: Real>(cos_i: T) -> T {
+    cos_i * 2.0
 }
 
 /// The scale of J_t at h = n (Belcour 2018, first order): J_t = ((cos θi − η cos θt)/η) I, cos θt from Snell's law;
 /// None under total internal reflection.
-pub fn refraction_scale(cos_i: f64, eta: f64) -> Option<f64> {
-    let sin2_t = (1.0 - cos_i * cos_i) / (eta * eta);
-    (sin2_t < 1.0).then(|| (cos_i - eta * (1.0 - sin2_t).sqrt()) / eta)
+pub fn refraction_scale<T: Real>(cos_i: T, eta: T) -> Option<T> {
+    let one = T::from(1.0);
+    let sin2_t = (one - cos_i * cos_i) / (eta * eta);
+    (sin2_t.value() < 1.0).then(|| (cos_i - eta * (one - sin2_t).sqrt()) / eta)
 }
 
 /// First-order form at h = n (Belcour 2018): J_r ≈ 2 cos θi I.

@@ -3,7 +3,6 @@
 
 pub mod diffuse;
 pub mod distribution;
-pub mod dual;
 pub mod fresnel;
 pub mod jacobian;
 pub mod lanes;

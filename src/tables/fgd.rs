@@ -5,6 +5,7 @@
 //! clamped at the ends. Each entry is a 256-point stratified visible-normal quadrature, E[F(wi·m) G2/G1].
 
 use super::Grid;
+use crate::dual::Real;
 use crate::optics::distribution::{Distribution, G2Form, Microfacet};
 use crate::optics::fresnel;
 use crate::optics::reflect;
@@ -81,10 +82,10 @@ impl Fgd {
         self.grid.data()
     }
 
-    /// Quadrilinear lookup of FGD(μ, α, η, κ).
-    pub fn lookup(&self, mu: f64, alpha: f64, eta: f64, kappa: f64) -> f64 {
+    /// Quadrilinear lookup of FGD(μ, α, η, κ), in f64 or in Duals (the derivative of the interpolant).
+    pub fn lookup<T: Real>(&self, mu: T, alpha: T, eta: T, kappa: T) -> T {
         let eta = (eta / ETA_MIN).ln() / (ETA_MAX / ETA_MIN).ln();
-        self.grid.lookup([mu, alpha, eta, (kappa / KAPPA_MAX).max(0.0).sqrt()])[0]
+        self.grid.lookup_real([mu, alpha, eta, (kappa / KAPPA_MAX).max_c(0.0).sqrt()])[0]
     }
 }
 

@@ -10,6 +10,7 @@ pub mod steinberg;
 
 pub use fgd::fgd;
 
+use crate::dual::Real;
 use crate::engine::{Floats, LANES};
 use crate::error::Result;
 use crate::optics::distribution::Microfacet;
@@ -153,6 +154,34 @@ impl<const D: usize, const W: usize> Grid<D, W> {
                 for (o, &v) in out.iter_mut().zip(&self.data[index * W..][..W]) {
                     *o += weight * v as f64;
                 }
+            }
+        }
+        out
+    }
+
+    /// `lookup` in f64 or in Duals: the same interpolant, whose derivatives are those of the weights (0 along an
+    /// axis clamped at its ends).
+    pub fn lookup_real<T: Real>(&self, x: [T; D]) -> [T; W] {
+        let corner: [(usize, f64); D] = std::array::from_fn(|d| node(x[d].value(), self.dims[d]));
+        let fraction: [T; D] = std::array::from_fn(|d| {
+            let (i, f) = corner[d];
+            if (0.0..=1.0).contains(&x[d].value()) {
+                x[d] * (self.dims[d] - 1) as f64 - i as f64
+            } else {
+                T::from(f)
+            }
+        });
+        let base: usize = corner.iter().zip(&self.strides).map(|(&(i, _), s)| i * s).sum();
+        let mut out = [T::from(0.0); W];
+        for k in 0..1usize << D {
+            let (mut weight, mut index) = (T::from(1.0), base);
+            for (d, stride) in self.strides.iter().enumerate() {
+                let bit = (k >> (D - 1 - d)) & 1; // the last axis varies fastest
+                weight = weight * if bit == 1 { fraction[d] } else { T::from(1.0) - fraction[d] };
+                index += bit * stride;
+            }
+            for (o, &v) in out.iter_mut().zip(&self.data[index * W..][..W]) {
+                *o = *o + weight * v as f64;
             }
         }
         out

@@ -1,43 +1,51 @@
 //! Covariances in the projected disc (Yamaguchi et al. 2019) and Belcour 2018's roughness and scattering maps.
 
+use crate::dual::Real;
+
 /// Belcour 2018 roughness-to-variance map h(α) = α^1.1 / (1 − α^1.1) (the reference code's fit).
-pub fn variance_from_alpha(alpha: f64) -> f64 {
-    let a = alpha.clamp(0.0, 0.9999).powf(1.1);
-    a / (1.0 - a)
+pub fn variance_from_alpha<T: Real>(alpha: T) -> T {
+    let a = alpha.clamp_c(0.0, 0.9999).powf(1.1);
+    a / (T::from(1.0) - a)
 }
 
 /// Inverse of `variance_from_alpha`: α = (v / (1 + v))^(1/1.1).
-pub fn alpha_from_variance(v: f64) -> f64 {
-    let v = v.max(0.0);
-    (v / (1.0 + v)).powf(1.0 / 1.1)
+pub fn alpha_from_variance<T: Real>(v: T) -> T {
+    let v = v.max_c(0.0);
+    (v / (v + 1.0)).powf(1.0 / 1.1)
 }
 
 /// Variance of Henyey–Greenstein forward scattering in the projected disc, ((1 − g)/g)^0.8 / (1 + g) (Belcour 2018
 /// reference code), with g clamped to [0.01, 0.99].
-pub fn hg_variance(g: f64) -> f64 {
-    let g = g.clamp(0.01, 0.99);
-    ((1.0 - g) / g).powf(0.8) / (1.0 + g)
+pub fn hg_variance<T: Real>(g: T) -> T {
+    let g = g.clamp_c(0.01, 0.99);
+    ((T::from(1.0) - g) / g).powf(0.8) / (g + 1.0)
 }
 
 /// A symmetric 2x2 covariance of directions projected on the tangent plane (Yamaguchi et al. 2019 §4), in the local
-/// tangent frame.
+/// tangent frame; in f64, or in Duals for parameter gradients.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
-pub struct Cov {
-    pub xx: f64,
-    pub xy: f64,
-    pub yy: f64,
+pub struct Cov<T = f64> {
+    pub xx: T,
+    pub xy: T,
+    pub yy: T,
 }
 
 impl Cov {
     pub const ZERO: Cov = Cov { xx: 0.0, xy: 0.0, yy: 0.0 };
+}
 
-    pub fn iso(v: f64) -> Cov {
-        Cov { xx: v, xy: 0.0, yy: v }
+impl<T: Real> Cov<T> {
+    pub fn zero() -> Cov<T> {
+        Cov::iso(T::from(0.0))
+    }
+
+    pub fn iso(v: T) -> Cov<T> {
+        Cov { xx: v, xy: T::from(0.0), yy: v }
     }
 
     /// R diag(vx, vy) Rᵀ with R the rotation by `angle` (Yamaguchi et al. 2019 eq. 7).
-    pub fn oriented(vx: f64, vy: f64, angle: f64) -> Cov {
-        if vx == vy {
+    pub fn oriented(vx: T, vy: T, angle: T) -> Cov<T> {
+        if vx.same(vy) {
             return Cov::iso(vx);
         }
         let (s, c) = angle.sin_cos();
@@ -45,12 +53,12 @@ impl Cov {
     }
 
     /// The variance along the unit tangent direction (cos φ, sin φ).
-    pub fn along(self, cos_phi: f64, sin_phi: f64) -> f64 {
-        cos_phi * cos_phi * self.xx + 2.0 * cos_phi * sin_phi * self.xy + sin_phi * sin_phi * self.yy
+    pub fn along(self, cos_phi: f64, sin_phi: f64) -> T {
+        self.xx * (cos_phi * cos_phi) + self.xy * (2.0 * cos_phi * sin_phi) + self.yy * (sin_phi * sin_phi)
     }
 
     /// Eigen-decomposition: (λ₁, λ₂, angle of λ₁'s eigenvector); (v, v, 0) for an isotropic Σ = vI.
-    pub fn eigen(self) -> (f64, f64, f64) {
+    pub fn eigen(self) -> (T, T, T) {
         let (l1, l2, cos, sin) = self.eigen_frame();
         (l1, l2, sin.atan2(cos))
     }
@@ -59,36 +67,36 @@ impl Cov {
     /// vector along (Σ_xx − λ₂, Σ_xy), or along (Σ_xy, λ₁ − Σ_xx) when Σ_xx < Σ_yy (no trigonometric call, no branch:
     /// loops over it vectorize); (v, v, 1, 0) for Σ = vI.
     #[inline(always)]
-    pub fn eigen_frame(self) -> (f64, f64, f64, f64) {
-        let mean = 0.5 * (self.xx + self.yy);
-        let half = 0.5 * (self.xx - self.yy);
+    pub fn eigen_frame(self) -> (T, T, T, T) {
+        let mean = (self.xx + self.yy) * 0.5;
+        let half = (self.xx - self.yy) * 0.5;
         let r = (half * half + self.xy * self.xy).sqrt();
-        let (x, y) = if half >= 0.0 { (half + r, self.xy) } else { (self.xy, r - half) };
-        let (x, y) = if x < 0.0 { (-x, -y) } else { (x, y) };
+        let (x, y) = if half.value() >= 0.0 { (half + r, self.xy) } else { (self.xy, r - half) };
+        let (x, y) = if x.value() < 0.0 { (-x, -y) } else { (x, y) };
         let len = (x * x + y * y).sqrt();
-        if r > 0.0 {
+        if r.value() > 0.0 {
             (mean + r, mean - r, x / len, y / len)
         } else {
-            (mean, mean, 1.0, 0.0)
+            (mean, mean, T::from(1.0), T::from(0.0))
         }
     }
 
     /// The roughness matrix R diag(αx, αy) Rᵀ of this covariance's GGX lobe: h⁻¹ applied to its eigenvalues.
-    pub fn alpha_matrix(self) -> Cov {
+    pub fn alpha_matrix(self) -> Cov<T> {
         let (ax, ay, angle) = self.ggx();
         Cov::oriented(ax, ay, angle)
     }
 
     /// The anisotropic GGX lobe (αx, αy, tangent angle) of this covariance: h⁻¹ of the eigenvalues.
-    pub fn ggx(self) -> (f64, f64, f64) {
+    pub fn ggx(self) -> (T, T, T) {
         let (l1, l2, angle) = self.eigen();
         (alpha_from_variance(l1), alpha_from_variance(l2), angle)
     }
 }
 
-impl std::ops::Add for Cov {
-    type Output = Cov;
-    fn add(self, o: Cov) -> Cov {
+impl<T: Real> std::ops::Add for Cov<T> {
+    type Output = Cov<T>;
+    fn add(self, o: Cov<T>) -> Cov<T> {
         Cov { xx: self.xx + o.xx, xy: self.xy + o.xy, yy: self.yy + o.yy }
     }
 }
@@ -96,34 +104,34 @@ impl std::ops::Add for Cov {
 impl std::ops::Mul<Cov> for f64 {
     type Output = Cov;
     fn mul(self, c: Cov) -> Cov {
-        Cov { xx: self * c.xx, xy: self * c.xy, yy: self * c.yy }
+        c * self
     }
 }
 
-impl std::ops::Mul<f64> for Cov {
-    type Output = Cov;
-    fn mul(self, d: f64) -> Cov {
+impl<T: Real> std::ops::Mul<T> for Cov<T> {
+    type Output = Cov<T>;
+    fn mul(self, d: T) -> Cov<T> {
         Cov { xx: self.xx * d, xy: self.xy * d, yy: self.yy * d }
     }
 }
 
-impl std::ops::Div<f64> for Cov {
-    type Output = Cov;
-    fn div(self, d: f64) -> Cov {
+impl<T: Real> std::ops::Div<T> for Cov<T> {
+    type Output = Cov<T>;
+    fn div(self, d: T) -> Cov<T> {
         Cov { xx: self.xx / d, xy: self.xy / d, yy: self.yy / d }
     }
 }
 
 /// One output lobe: energy per channel and its anisotropic GGX roughness and tangent angle.
 #[derive(Clone, Debug, PartialEq)]
-pub struct Lobe {
-    pub energy: Vec<f64>,
-    pub cov: Cov,
+pub struct Lobe<T = f64> {
+    pub energy: Vec<T>,
+    pub cov: Cov<T>,
 }
 
-impl Lobe {
+impl<T: Real> Lobe<T> {
     /// (αx, αy, angle) of the lobe's GGX distribution.
-    pub fn roughness(&self) -> (f64, f64, f64) {
+    pub fn roughness(&self) -> (T, T, T) {
         self.cov.ggx()
     }
 }

@@ -35,7 +35,9 @@
 //!
 //! Layout: `cov.rs` (covariances, roughness maps), `adding.rs` (the adding-doubling), `table.rs` (its table and
 //! the block evaluator). Sampling: each rough lobe by its GGX visible normals, weighted by its energy, and the
-//! diffuse base by the cosine; lobes of roughness 0 are Dirac (`specular`).
+//! diffuse base by the cosine; lobes of roughness 0 are Dirac (`specular`). Parameter gradients (`Stack.eval_grad`)
+//! run the same adding-doubling in Duals (src/dual.rs) per evaluation, as `interpolated=False` does: exact for
+//! that model, the FGD table's multilinear interpolant included.
 
 mod adding;
 mod cov;
@@ -47,8 +49,9 @@ pub use cov::{alpha_from_variance, hg_variance, variance_from_alpha, Cov, Lobe};
 
 use super::common::options::{choice, flag, variant, G2, MICROFACET_TRANSMISSION, TRANSPORT_FIT};
 use super::corrections::transport_fit;
-use super::{Args, InputSpec, Inputs, Model, ModelInfo, OptionSpec, Properties, Proposal};
+use super::{Args, Field, Gradient, InputSpec, Inputs, Model, ModelInfo, OptionSpec, Properties, Proposal, Seed};
 use crate::bsdf;
+use crate::dual::{Dual, Real};
 use crate::engine::Rows;
 use crate::error::{value_error, Result};
 use crate::models::FitLanes;
@@ -76,7 +79,7 @@ pub const INFO: ModelInfo = ModelInfo {
     ] as &[OptionSpec],
     inputs: &[] as &[InputSpec],
     properties: Properties { reciprocal: false, energy_conserving: false, anisotropic: true, spectral: true },
-    gradients: &[],
+    gradients: &["ior", "k", "roughness_x", "roughness_y", "angle", "albedo", "thickness", "sigma_a", "sigma_s", "g"],
     prepare: |stack, args| {
         let opts = Options::parse(args)?;
         transport_fit::apply(opts.transport_fit, Box::new(prepare(stack, &opts)?), stack)
@@ -140,12 +143,27 @@ pub struct Prepared {
     table_f32: Option<lanes::TableF32>,
     opts: Options,
     channels: usize,
+    /// The stack, for gradients (which run the adding-doubling in Duals).
+    stack: Stack,
 }
 
-pub fn prepare(stack: &Stack, opts: &Options) -> Result<Prepared> {
+/// A stack's steps and its Lambertian base (albedo per channel, η of the medium above it against the outside).
+type Layers<T> = (Vec<Step<T>>, Option<(Vec<T>, T)>);
+
+/// The steps of `stack` and its base, each number through `value(layer, field, channel, number)`: the identity, or
+/// a Dual seeded for gradients. With `every_slab`, each dielectric gets a slab step, even one that does nothing (a
+/// gradient by the thickness or σ where they are 0).
+fn layers<T: Real>(
+    stack: &Stack,
+    value: impl Fn(usize, Field, usize, f64) -> T,
+    every_slab: bool,
+) -> Result<Layers<T>> {
+    let channels = |i: usize, field: Field, v: &[f64]| -> Vec<T> {
+        v.iter().enumerate().map(|(c, &x)| value(i, field, c, x)).collect()
+    };
     let mut steps = Vec::new();
     let mut diffuse = None;
-    for (layer, rel) in stack.layers.iter().zip(stack.interfaces()) {
+    for (i, (layer, rel)) in stack.layers.iter().zip(stack.interfaces()).enumerate() {
         let (alpha, angle) = match layer {
             Layer::Dielectric { alpha, angle, .. } | Layer::Conductor { alpha, angle, .. } => (*alpha, *angle),
             Layer::Diffuse { roughness, .. } if *roughness > 0.0 => {
@@ -153,47 +171,145 @@ pub fn prepare(stack: &Stack, opts: &Options) -> Result<Prepared> {
             }
             Layer::Diffuse { .. } => ((0.0, 0.0), 0.0),
         };
+        let interface = |conductor: bool| Step::Interface {
+            eta: channels(i, Field::Ior, &rel.eta),
+            kappa: channels(i, Field::K, &rel.kappa),
+            alpha: (value(i, Field::RoughnessX, 0, alpha.0), value(i, Field::RoughnessY, 0, alpha.1)),
+            angle: value(i, Field::Angle, 0, angle),
+            conductor,
+        };
         match layer {
             Layer::Dielectric { thickness, sigma_a, sigma_s, g, .. } => {
-                steps.push(Step::Interface { eta: rel.eta, kappa: rel.kappa, alpha, angle, conductor: false });
-                if *thickness > 0.0 && sigma_a.iter().chain(sigma_s).any(|&s| s > 0.0) {
+                steps.push(interface(false));
+                let extinct = sigma_a.iter().chain(sigma_s).any(|&s| s > 0.0);
+                if (*thickness > 0.0 && extinct) || every_slab {
                     steps.push(Step::Medium {
-                        thickness: *thickness,
-                        sigma_a: sigma_a.clone(),
-                        sigma_s: sigma_s.clone(),
-                        g: *g,
+                        thickness: value(i, Field::Thickness, 0, *thickness),
+                        sigma_a: channels(i, Field::SigmaA, sigma_a),
+                        sigma_s: channels(i, Field::SigmaS, sigma_s),
+                        g: value(i, Field::G, 0, *g),
                     });
                 }
             }
-            Layer::Conductor { .. } => {
-                steps.push(Step::Interface { eta: rel.eta, kappa: rel.kappa, alpha, angle, conductor: true });
-            }
+            Layer::Conductor { .. } => steps.push(interface(true)),
             Layer::Diffuse { albedo, .. } => {
-                let eta = mean(&rel.eta);
-                diffuse = Some(DiffuseBase { albedo: albedo.clone(), eta, r_up: vec![] });
+                diffuse = Some((channels(i, Field::Albedo, albedo), mean(&channels(i, Field::Ior, &rel.eta))));
             }
         }
     }
+    Ok((steps, diffuse))
+}
+
+pub fn prepare(stack: &Stack, opts: &Options) -> Result<Prepared> {
+    let (steps, diffuse) = layers(stack, |_, _, _, v| v, false)?;
     let anisotropic = steps.iter().any(|s| matches!(s, Step::Interface { alpha, .. } if alpha.0 != alpha.1));
+    let channels = stack.channels;
+    let diffuse = diffuse.map(|(albedo, eta)| {
+        let r_up = adding::hemispherical_reflectance_from_below(&steps, opts, channels, eta);
+        DiffuseBase { albedo, eta, r_up }
+    });
     let mut p = Prepared {
         steps,
         anisotropic,
-        diffuse: None,
+        diffuse,
         table: None,
         table_f32: None,
         opts: *opts,
-        channels: stack.channels,
+        channels,
+        stack: stack.clone(),
     };
-    if let Some(mut d) = diffuse {
-        d.r_up = p.hemispherical_reflectance_from_below(d.eta);
-        p.diffuse = Some(d);
-    }
     if opts.interpolated {
         let t = p.tabulate();
         p.table_f32 = lanes::TableF32::new(&p, &t);
         p.table = Some(t);
     }
     Ok(p)
+}
+
+/// The gradient of the adding-doubling run per evaluation (`interpolated=False`; `Model::gradient`) with respect to N
+/// parameters: f and ∂f/∂p per channel, through every step (IOR, κ, roughness, tangent angle, thickness, σa, σs, g,
+/// the base's albedo), the FGD table's interpolant included. The reference code's TIR step and
+/// `microfacet_transmission` read tables without derivatives: they are refused (and so is `transport_fit`).
+fn gradient<const N: usize>(p: &Prepared, seeds: &[Seed]) -> Result<Gradient<'static>> {
+    if p.opts.tir != Tir::Off || p.opts.microfacet_transmission {
+        return value_error("gradients of model 'belcour' take tir='off' and microfacet_transmission=False");
+    }
+    let value = |layer: usize, field: Field, channel: usize, v: f64| {
+        let mut x = Dual::<N>::from(v);
+        for s in seeds.iter().filter(|s| s.layer == layer && s.field == field && s.channel.is_none_or(|c| c == channel))
+        {
+            x.d[s.param] += s.scale;
+        }
+        x
+    };
+    let (steps, diffuse) = layers(&p.stack, value, true)?;
+    let (opts, channels) = (p.opts, p.channels);
+    let diffuse = diffuse.map(|(albedo, eta)| {
+        let r_up = adding::hemispherical_reflectance_from_below(&steps, &opts, channels, eta);
+        DiffuseBase { albedo, eta, r_up }
+    });
+    let f = vec![Dual::<N>::from(0.0); channels];
+    Ok(Box::new(move |wi, wo, out| {
+        let mut f = f.clone();
+        eval_exact(&steps, diffuse.as_ref(), &opts, wi, wo, &mut f);
+        for (c, x) in f.iter().enumerate() {
+            out[c * (N + 1)] = x.v;
+            out[c * (N + 1) + 1..(c + 1) * (N + 1)].copy_from_slice(&x.d);
+        }
+    }))
+}
+
+/// f by the adding-doubling run for this pair (`interpolated=False`), in f64 or in Duals: each lobe's GGX at its
+/// energy, and the diffuse base.
+fn eval_exact<T: Real>(
+    steps: &[Step<T>],
+    diffuse: Option<&DiffuseBase<T>>,
+    opts: &Options,
+    wi: DVec3,
+    wo: DVec3,
+    out: &mut [T],
+) {
+    out.fill(T::from(0.0));
+    if wi.z <= 0.0 || wo.z <= 0.0 {
+        return;
+    }
+    let channels = out.len();
+    let cos_theta = if opts.symmetric { symmetric_cosine(wi, wo) } else { wo.z };
+    let (cos_phi, sin_phi) = azimuth(wo);
+    let (lobes, view) = adding::adding(steps, opts, channels, T::from(cos_theta), cos_phi, sin_phi);
+    for lobe in &lobes {
+        add_lobe(opts.g2, lobe.roughness(), &lobe.energy, wi, wo, out);
+    }
+    if diffuse.is_some() {
+        // T↓ at θi and T↑ at θo (not at |wo·h|): symmetric under exchange, since T0i = Ti0 in this model.
+        let (ci, si) = azimuth(wi);
+        let light = adding::adding(steps, opts, channels, T::from(wi.z), ci, si).1;
+        let view = if opts.symmetric {
+            adding::adding(steps, opts, channels, T::from(wo.z), cos_phi, sin_phi).1
+        } else {
+            view
+        };
+        add_diffuse(diffuse, |ch| light.t0i[ch], |ch| view.ti0[ch], out);
+    }
+}
+
+/// Adds one GGX lobe of roughness (αx, αy, tangent angle) with per-channel `energy`; a lobe of roughness 0 is a Dirac
+/// delta, not part of f.
+fn add_lobe<T: Real>(g2: G2Form, (ax, ay, angle): (T, T, T), energy: &[T], wi: DVec3, wo: DVec3, out: &mut [T]) {
+    let mf = Microfacet::<T>::with_parameters(Distribution::Ggx, ax, ay, angle);
+    let shape = bsdf::reflection_geometry(&mf, g2, wi, wo).map_or(T::from(0.0), |(geo, _)| geo);
+    for (o, &e) in out.iter_mut().zip(energy) {
+        *o = *o + e * shape;
+    }
+}
+
+/// Adds the diffuse base ρ/π · T↓ T↑ / ((1 − ρ R̄↑) η²) from the energies transmitted down and up per channel.
+fn add_diffuse<T: Real>(d: Option<&DiffuseBase<T>>, down: impl Fn(usize) -> T, up: impl Fn(usize) -> T, out: &mut [T]) {
+    let Some(d) = d else { return };
+    for (ch, o) in out.iter_mut().enumerate() {
+        let rho = d.albedo[ch];
+        *o = *o + rho * FRAC_1_PI * down(ch) * up(ch) / ((T::from(1.0) - rho * d.r_up[ch]) * d.eta * d.eta);
+    }
 }
 
 impl Model for Prepared {
@@ -203,6 +319,10 @@ impl Model for Prepared {
 
     fn eval_f32(&self, wi: Rows, wo: Rows, fit: Option<&FitLanes>, out: &mut [f32]) -> bool {
         lanes::eval(self, wi, wo, fit, out)
+    }
+
+    fn gradient(&self, seeds: &[Seed], n_params: usize) -> Result<Gradient<'_>> {
+        super::dual_width!(n_params, gradient(self, seeds))
     }
 
     fn proposals(&self, wo: DVec3) -> Vec<(f64, Proposal)> {
@@ -281,45 +401,16 @@ impl Prepared {
     }
 
     pub fn eval(&self, wi: DVec3, wo: DVec3, out: &mut [f64]) {
-        out.fill(0.0);
-        if wi.z <= 0.0 || wo.z <= 0.0 {
-            return;
-        }
-        if self.table.is_some() {
+        if self.table.is_some() && wi.z > 0.0 && wo.z > 0.0 {
+            out.fill(0.0);
             return self.eval_columns([&[wi.x], &[wi.y], &[wi.z]], [&[wo.x], &[wo.y], &[wo.z]], out);
         }
-        let cos_theta = if self.opts.symmetric { symmetric_cosine(wi, wo) } else { wo.z };
-        let (cos_phi, sin_phi) = azimuth(wo);
-        let (lobes, view) = self.adding(cos_theta, cos_phi, sin_phi);
-        for lobe in &lobes {
-            self.add_lobe(lobe.roughness(), &lobe.energy, wi, wo, out);
-        }
-        if self.diffuse.is_some() {
-            // T↓ at θi and T↑ at θo (not at |wo·h|): symmetric under exchange, since T0i = Ti0 in this model.
-            let (ci, si) = azimuth(wi);
-            let light = self.adding(wi.z, ci, si).1;
-            let view = if self.opts.symmetric { self.adding(wo.z, cos_phi, sin_phi).1 } else { view };
-            self.add_diffuse(|ch| light.t0i[ch], |ch| view.ti0[ch], out);
-        }
+        eval_exact(&self.steps, self.diffuse.as_ref(), &self.opts, wi, wo, out)
     }
 
-    /// Adds one GGX lobe of roughness (αx, αy, tangent angle) with per-channel `energy`; a lobe of roughness 0 is
-    /// a Dirac delta, not part of f.
-    fn add_lobe(&self, (ax, ay, angle): (f64, f64, f64), energy: &[f64], wi: DVec3, wo: DVec3, out: &mut [f64]) {
-        let mf = Microfacet::new(Distribution::Ggx, ax, ay, angle);
-        let shape = bsdf::reflection_geometry(&mf, self.opts.g2, wi, wo).map_or(0.0, |(geo, _)| geo);
-        for (o, e) in out.iter_mut().zip(energy) {
-            *o += e * shape;
-        }
-    }
-
-    /// Adds the diffuse base ρ/π · T↓ T↑ / ((1 − ρ R̄↑) η²) from the energies transmitted down and up per channel.
-    fn add_diffuse(&self, down: impl Fn(usize) -> f64, up: impl Fn(usize) -> f64, out: &mut [f64]) {
-        let Some(d) = &self.diffuse else { return };
-        for (ch, o) in out.iter_mut().enumerate() {
-            let rho = d.albedo[ch];
-            *o += rho * FRAC_1_PI * down(ch) * up(ch) / ((1.0 - rho * d.r_up[ch]) * d.eta * d.eta);
-        }
+    /// The adding-doubling of this stack for a viewing direction (`adding::adding`).
+    fn adding(&self, cos_theta: f64, cos_phi: f64, sin_phi: f64) -> (Vec<Lobe>, adding::State) {
+        adding::adding(&self.steps, &self.opts, self.channels, cos_theta, cos_phi, sin_phi)
     }
 }
 

@@ -212,7 +212,12 @@ impl Prepared {
                 let at = |corners: &Corners, table: &[f64], ch: usize| {
                     (0..4).map(|q| corners.weight[q][r] * table[corners.index[q][r] as usize * c + ch]).sum::<f64>()
                 };
-                self.add_diffuse(|ch| at(&down_at, &t.t_down, ch), |ch| at(up_at, &t.t_up, ch), o);
+                super::add_diffuse(
+                    self.diffuse.as_ref(),
+                    |ch| at(&down_at, &t.t_down, ch),
+                    |ch| at(up_at, &t.t_up, ch),
+                    o,
+                );
             }
         }
     }

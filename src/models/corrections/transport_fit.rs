@@ -242,6 +242,13 @@ impl Model for TransportFit {
         Some(self)
     }
 
+    fn gradient(&self, _: &[super::super::Seed], _: usize) -> Result<super::super::Gradient<'_>> {
+        value_error(
+            "transport_fit (the improved variants) has no parameter gradients: its fit is made for the stack as \
+             prepared; pass transport_fit=False (or variant='published')",
+        )
+    }
+
     fn check_inputs(&self, given: &[bool]) -> Result<()> {
         if given.iter().any(|&g| g) {
             return value_error(

@@ -26,6 +26,16 @@ pub trait Real:
     fn sin_cos(self) -> (Self, Self);
     /// max(self, floor), floor a constant.
     fn max_c(self, floor: f64) -> Self;
+    /// self clamped to the constants [lo, hi].
+    fn clamp_c(self, lo: f64, hi: f64) -> Self;
+    fn abs(self) -> Self;
+    fn ln(self) -> Self;
+    /// self^p for a constant p (self ≥ 0).
+    fn powf(self, p: f64) -> Self;
+    /// atan2(self, x): the angle of (x, self).
+    fn atan2(self, x: Self) -> Self;
+    /// Whether two numbers are the same, derivatives included.
+    fn same(self, o: Self) -> bool;
 }
 
 impl Real for f64 {
@@ -52,6 +62,30 @@ impl Real for f64 {
     #[inline(always)]
     fn max_c(self, floor: f64) -> f64 {
         self.max(floor)
+    }
+    #[inline(always)]
+    fn clamp_c(self, lo: f64, hi: f64) -> f64 {
+        self.clamp(lo, hi)
+    }
+    #[inline(always)]
+    fn abs(self) -> f64 {
+        f64::abs(self)
+    }
+    #[inline(always)]
+    fn ln(self) -> f64 {
+        f64::ln(self)
+    }
+    #[inline(always)]
+    fn powf(self, p: f64) -> f64 {
+        f64::powf(self, p)
+    }
+    #[inline(always)]
+    fn atan2(self, x: f64) -> f64 {
+        f64::atan2(self, x)
+    }
+    #[inline(always)]
+    fn same(self, o: f64) -> bool {
+        self == o
     }
 }
 
@@ -187,6 +221,39 @@ impl<const N: usize> Real for Dual<N> {
             Dual::from(floor)
         }
     }
+    fn clamp_c(self, lo: f64, hi: f64) -> Self {
+        if self.v < lo {
+            Dual::from(lo)
+        } else if self.v > hi {
+            Dual::from(hi)
+        } else {
+            self
+        }
+    }
+    fn abs(self) -> Self {
+        if self.v < 0.0 {
+            -self
+        } else {
+            self
+        }
+    }
+    fn ln(self) -> Self {
+        self.chain(self.v.ln(), 1.0 / self.v)
+    }
+    fn powf(self, p: f64) -> Self {
+        // d x^p = p x^(p−1) dx; at 0 (a clamped roughness or variance) taken as 0.
+        let y = self.v.powf(p);
+        self.chain(y, if self.v > 0.0 { p * y / self.v } else { 0.0 })
+    }
+    fn atan2(self, x: Self) -> Self {
+        // d atan2(y, x) = (x dy − y dx) / (x² + y²).
+        let r2 = x.v * x.v + self.v * self.v;
+        let k = if r2 > 0.0 { 1.0 / r2 } else { 0.0 };
+        Dual { v: self.v.atan2(x.v), d: std::array::from_fn(|i| (x.v * self.d[i] - self.v * x.d[i]) * k) }
+    }
+    fn same(self, o: Self) -> bool {
+        self == o
+    }
 }
 
 #[cfg(test)]
@@ -196,7 +263,8 @@ mod tests {
     /// A function of three parameters, written once and evaluated in f64 and in Dual<3>.
     fn g<T: Real>(x: T, y: T, z: T) -> T {
         let (s, c) = (x * y).sin_cos();
-        (x * x + 1.0).sqrt() * (-y).exp() / (z + 2.0) + (z * 0.7).erf() * s - c * 3.0
+        let more = (x * x + 0.5).ln() + (z * z + 0.1).powf(1.1) + y.atan2(x - 2.0) - (y * 3.0).abs();
+        (x * x + 1.0).sqrt() * (-y).exp() / (z + 2.0) + (z * 0.7).erf() * s - c * 3.0 + more
     }
 
     #[test]
