@@ -24,8 +24,7 @@ pub fn rough_conductor<T: Real>(mf: &Microfacet<T>, form: G2Form, eta: T, k: T, 
     if wi.z <= 0.0 || wo.z <= 0.0 {
         return T::from(0.0);
     }
-    reflection_geometry(mf, form, wi, wo)
-        .map_or(T::from(0.0), |(geo, cos_h)| geo * fresnel::conductor(T::from(cos_h), eta, k))
+    reflection_geometry(mf, form, wi, wo).map_or(T::from(0.0), |(geo, cos_h)| geo * fresnel::conductor(cos_h, eta, k))
 }
 
 /// Rough dielectric BSDF (Walter et al. 2007 eqs. 20–21) for radiance: reflection when wi and wo lie on the

@@ -74,3 +74,17 @@ def test_per_element_values_broadcast_and_bad_ones_are_refused(rng):
         fam.eval(wi, wo, "reference", r=r)
     with pytest.raises(ValueError, match="input shapes do not broadcast"):
         fam.eval(wi, wo, "belcour", r=r[:10])
+
+
+def test_the_cell_lookup_is_a_binary_search(rng):
+    """family._cells (a table over uniform bins and one comparison each way) finds the same cell as a binary search,
+    on grids as the refinement makes them (nodes on a 1/256 lattice of the range, 2 to 65 of them), for random
+    values, the nodes themselves and the floats just beside them."""
+    for _ in range(100):
+        lattice = np.unique(rng.integers(0, 257, rng.integers(0, 64)))
+        nodes = 0.1 + 4.9 * np.unique(np.concatenate([[0, 256], lattice])) / 256
+        v = np.concatenate(
+            [rng.uniform(nodes[0], nodes[-1], 2000), nodes, np.nextafter(nodes, 0)[1:], np.nextafter(nodes, 9)[:-1]]
+        )
+        exact = np.clip(np.searchsorted(nodes, v, side="right") - 1, 0, len(nodes) - 2)
+        assert np.array_equal(family._cells(nodes, v), exact)

@@ -71,6 +71,23 @@ def grid(template, model: str, options: tuple = ()) -> tuple:
     return tuple(out)
 
 
+#: Uniform bins of a parameter's range in the lookup table that finds a value's grid cell (finer than the closest
+#: nodes, MAX_NODES from halvings of 4 intervals: at most one node falls inside a bin).
+_BINS = 4096
+
+
+def _cells(nodes: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """The grid cell of each value v (index of the node at or below it, at most len(nodes) − 2): a table over
+    uniform bins gives the cell at the bin's start, and one comparison the node inside the bin (a binary search per
+    value costs more)."""
+    lo, hi = nodes[0], nodes[-1]
+    starts = lo + (hi - lo) * np.arange(_BINS) / _BINS
+    table = np.clip(np.searchsorted(nodes, starts, side="right") - 1, 0, len(nodes) - 2).astype(np.intp)
+    i = table[np.clip(((v - lo) * (_BINS / (hi - lo))).astype(np.intp), 0, _BINS - 1)]
+    i = np.maximum(i - (v < nodes[i]), 0)  # a value just below a node that starts its bin (rounding)
+    return np.minimum(i + (v >= nodes[i + 1]), len(nodes) - 2)
+
+
 def eval_family(template, wi, wo, model: str, values: dict, options: dict) -> np.ndarray:
     """f (..., channels) of `template` at direction pairs wi, wo with its free parameters' values per element
     (`values`: name -> array broadcast with the directions), interpolated on `grid`. ValueError for a missing or
@@ -90,27 +107,30 @@ def eval_family(template, wi, wo, model: str, values: dict, options: dict) -> np
         v = a.reshape(-1).astype(np.float64)
         if not np.all(np.isfinite(v)) or v.min() < p.low or v.max() > p.high:
             raise ValueError(f"{p.name} must hold finite values in [{p.low}, {p.high}] per element")
-        i = np.clip(np.searchsorted(grid_p, v, side="right") - 1, 0, len(grid_p) - 2)
+        i = _cells(grid_p, v)
         index.append(i)
         weight.append((v - grid_p[i]) / (grid_p[i + 1] - grid_p[i]))
     # Rows sorted by the grid cell they fall in (one sort, one gather): each cell's rows, a contiguous slice, are
-    # evaluated at its 2^k corners.
+    # evaluated at its 2^k corners. Keys of 16 bits sort by radix.
     cells = tuple(len(g) - 1 for g in nodes)
-    key = np.ravel_multi_index(index, cells)
+    key = np.ravel_multi_index(index, cells).astype(np.uint16 if np.prod(cells) < 2**16 else np.int64)
     order = np.argsort(key, kind="stable")
     ends = np.concatenate([[0], np.cumsum(np.bincount(key, minlength=int(np.prod(cells))))])
     wi, wo, weight = wi[order], wo[order], [t[order] for t in weight]
+    stacks = {}  # each node's stack, bound once (a node is the corner of up to 2^k cells)
     out = None
     for cell in np.flatnonzero(ends[1:] > ends[:-1]):
         rows = slice(ends[cell], ends[cell + 1])
         base = np.unravel_index(cell, cells)
         for corner in itertools.product((0, 1), repeat=len(names)):
-            stack = template.bind(**{n: float(g[j + c]) for n, g, j, c in zip(names, nodes, base, corner)})
-            f = stack.eval(wi[rows], wo[rows], model, **options)
-            w = np.prod([t[rows] if c else 1.0 - t[rows] for t, c in zip(weight, corner)], axis=0)
+            node = tuple(int(j + c) for j, c in zip(base, corner))
+            if node not in stacks:
+                stacks[node] = template.bind(**{n: float(g[j]) for n, g, j in zip(names, nodes, node)})
+            f = stacks[node].eval(wi[rows], wo[rows], model, **options)
+            w = np.prod([t[rows] if c else 1.0 - t[rows] for t, c in zip(weight, corner)], axis=0).astype(f.dtype)
             if out is None:
                 out = np.zeros((len(wi), f.shape[-1]), dtype=f.dtype)
-            out[rows] += (w[:, None] * f).astype(out.dtype)
+            out[rows] += w[:, None] * f
     unsorted = np.empty_like(out)
     unsorted[order] = out
     out = unsorted

@@ -168,7 +168,7 @@ fn gradient<const N: usize>(p: &Prepared, seeds: &[Seed]) -> Result<Gradient<'st
                 }
                 if let Some((geo, cos_h)) = bsdf::reflection_geometry(&mfd, g2, wi, wo) {
                     for c in 0..eta.len() {
-                        write(out, c, geo * fresnel::conductor(Dual::from(cos_h), eta[c], k[c]));
+                        write(out, c, geo * fresnel::conductor(cos_h, eta[c], k[c]));
                     }
                 }
             }))

@@ -2,6 +2,7 @@
 //! hemispherical (diffuse) Fresnel reflectance.
 
 use crate::dual::Real;
+use std::ops::{Add, Mul, Sub};
 
 /// The cosines of a refraction by Snell's law: (|cos_i| clamped to 1, the relative IOR seen from the incident side,
 /// cos_t), the IOR inverted for incidence from inside (cos_i < 0); None under total internal reflection.
@@ -35,12 +36,17 @@ pub fn dielectric_transmittance(cos_i: f64, eta: f64) -> f64 {
 }
 
 /// Exact unpolarized conductor Fresnel reflectance for the relative complex IOR `eta` + i`k`
-/// (closed form of the Fresnel equations, e.g. Lagarde 2013 / Born & Wolf §14.2). `cos_i` in [0, 1].
+/// (closed form of the Fresnel equations, e.g. Lagarde 2013 / Born & Wolf §14.2). `cos_i` in [0, 1]. The cosine
+/// and the IOR are each f64 or Dual: a microfacet's cosine carries no derivative, Belcour's mean cosine does.
 #[inline(always)]
-pub fn conductor<T: Real>(cos_i: T, eta: T, k: T) -> T {
+pub fn conductor<C: Real, T: Real + Add<C, Output = T> + Sub<C, Output = T> + Mul<C, Output = T>>(
+    cos_i: C,
+    eta: T,
+    k: T,
+) -> T {
     let cos_i = cos_i.clamp_c(0.0, 1.0);
     let cos2 = cos_i * cos_i;
-    let sin2 = T::from(1.0) - cos2;
+    let sin2 = C::from(1.0) - cos2;
     let t0 = eta * eta - k * k - sin2;
     let a2b2 = (t0 * t0 + T::from(4.0) * eta * eta * k * k).sqrt();
     // a² = (a2b2 + t0)/2, written as 2η²κ²/(a2b2 − t0) for t0 < 0 (total internal reflection when κ → 0), where the
