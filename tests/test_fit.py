@@ -151,11 +151,14 @@ def test_belcour_s_gradients_are_its_central_differences(rng):
 
 
 def test_a_diffuse_base_s_gradients_and_a_parameter_f_ignores(rng):
-    """Oren–Nayar: albedo per channel and σ. A conductor's frame angle under isotropic roughness leaves f unchanged:
-    its gradient is 0 (to rounding)."""
+    """Oren–Nayar: albedo per channel and σ; a smooth coat over Lambert. A conductor's frame angle under isotropic
+    roughness leaves f unchanged: its gradient is 0 (to rounding)."""
     template = Stack([Diffuse((Param("r", 0.0, 1.0), 0.5, Param("b", 0.0, 1.0)), roughness=Param("sigma", 0.0, 1.0))])
     wi, wo = random_hemisphere(rng, 300, 0.02), random_hemisphere(rng, 300, 0.02)
     _check(template, dict(r=0.7, b=0.2, sigma=0.4), wi, wo)
+    # A smooth coat over Lambert (Mitsuba's plastic): the coat's IOR, F̄_int's included, and the albedo.
+    plastic = Stack([Dielectric(Param("n", 1.2, 2.0)), Diffuse((Param("r", 0.0, 1.0), 0.5, Param("b", 0.0, 1.0)))])
+    _check(plastic, dict(n=1.6, r=0.7, b=0.2), wi, wo)
     iso = Stack([Conductor(ior=1.1, k=3.0, roughness=0.3, angle=Param("phi", -1.0, 1.0))])
     f, grad = iso.eval_grad(wi, wo, phi=0.4)
     assert np.all(np.abs(grad[..., 0]) <= 1e-12 * f.max())

@@ -14,7 +14,7 @@ use super::common::block::{eval_rows, simd_columns, BLOCK};
 use super::common::options::{DISTRIBUTION, FRESNEL, G2};
 use super::{Args, Field, Gradient, InputSpec, Model, ModelInfo, OptionSpec, Properties, Proposal, Seed};
 use crate::bsdf;
-use crate::dual::Dual;
+use crate::dual::{Dual, Real};
 use crate::engine::{self, Floats, Rows, V3};
 use crate::error::{value_error, Result};
 use crate::models::FitLanes;
@@ -123,15 +123,18 @@ impl Prepared {
 }
 
 /// The gradient of `Prepared::eval` with respect to N parameters (`Model::gradient`), f and ∂f/∂p per channel in
-/// Duals: a rough conductor's η, κ (exact Fresnel), αx, αy and frame angle; a diffuse base's albedo and Oren–Nayar σ.
+/// Duals: a rough conductor's η, κ (exact Fresnel), αx, αy and frame angle; a diffuse base's albedo and Oren–Nayar σ;
+/// a smooth coat's η (F̄_int's quadrature included) and the albedo beneath it.
 fn gradient<const N: usize>(p: &Prepared, seeds: &[Seed]) -> Result<Gradient<'static>> {
-    let dual = |field: Field, channel: usize, v: f64| {
+    let dual_at = |layer: usize, field: Field, channel: usize, v: f64| {
         let mut x = Dual::<N>::from(v);
-        for s in seeds.iter().filter(|s| s.field == field && s.channel.is_none_or(|c| c == channel)) {
+        let seeded = |s: &&Seed| s.layer == layer && s.field == field && s.channel.is_none_or(|c| c == channel);
+        for s in seeds.iter().filter(seeded) {
             x.d[s.param] += s.scale;
         }
         x
     };
+    let dual = |field: Field, channel: usize, v: f64| dual_at(0, field, channel, v);
     let takes = |fields: &[Field], what: &str| match seeds.iter().find(|s| !fields.contains(&s.field)) {
         Some(s) => value_error(format!(
             "model 'microfacet' has no gradient by {} of this stack ({what})",
@@ -184,9 +187,25 @@ fn gradient<const N: usize>(p: &Prepared, seeds: &[Seed]) -> Result<Gradient<'st
                 }
             }))
         }
-        Prepared::CoatLambert { .. } => value_error(
-            "model 'microfacet' has no gradients of a smooth coat over Lambert yet (its F̄_int has no derivative)",
-        ),
+        Prepared::CoatLambert { albedo, eta, .. } => {
+            // The coat's IOR (layer 0) and the base's albedo (layer 1); the base's own IOR seed (its medium against
+            // the outside) is the coat's again, not a second parameter.
+            let fields = [Field::Ior, Field::Albedo];
+            takes(&fields, "a smooth coat over Lambert: the coat's ior and the base's albedo")?;
+            let eta: Vec<Dual<N>> = eta.iter().enumerate().map(|(c, &e)| dual(Field::Ior, c, e)).collect();
+            let albedo: Vec<Dual<N>> =
+                albedo.iter().enumerate().map(|(c, &a)| dual_at(1, Field::Albedo, c, a)).collect();
+            let f_int: Vec<Dual<N>> = eta.iter().map(|&e| fresnel::diffuse_reflectance(Dual::from(1.0) / e)).collect();
+            Ok(Box::new(move |wi, wo, out| {
+                out.fill(0.0);
+                if wi.z <= 0.0 || wo.z <= 0.0 {
+                    return;
+                }
+                for c in 0..eta.len() {
+                    write(out, c, smooth_coat_lambert(albedo[c], eta[c], f_int[c], wi.z, wo.z));
+                }
+            }))
+        }
     }
 }
 
@@ -349,9 +368,9 @@ fn geometry_in(mf: &Microfacet, form: G2Form, wi: [&[f64]; 3], wo: [&[f64]; 3], 
 /// Smooth dielectric coat over a Lambertian base, off the specular direction (the sum of all internal bounces;
 /// Mitsuba's `plastic` with nonlinear = true, Weidlich–Wilkie 2007 §3):
 /// f = ρ (1 − F(θi)) (1 − F(θo)) / (π η² (1 − ρ F̄_int)), F̄_int the hemispherical Fresnel reflectance from inside.
-pub fn smooth_coat_lambert(albedo: f64, eta: f64, f_int: f64, cos_i: f64, cos_o: f64) -> f64 {
+pub fn smooth_coat_lambert<T: Real>(albedo: T, eta: T, f_int: T, cos_i: f64, cos_o: f64) -> T {
     let t = fresnel::dielectric_transmittance(cos_i, eta) * fresnel::dielectric_transmittance(cos_o, eta);
-    albedo * t * FRAC_1_PI / (eta * eta * (1.0 - albedo * f_int))
+    albedo * t * FRAC_1_PI / (eta * eta * (T::from(1.0) - albedo * f_int))
 }
 
 /// The GPU half (shaders/microfacet.wgsl).

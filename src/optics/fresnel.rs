@@ -5,34 +5,35 @@ use crate::dual::Real;
 use std::ops::{Add, Mul, Sub};
 
 /// The cosines of a refraction by Snell's law: (|cos_i| clamped to 1, the relative IOR seen from the incident side,
-/// cos_t), the IOR inverted for incidence from inside (cos_i < 0); None under total internal reflection.
+/// cos_t), the IOR inverted for incidence from inside (cos_i < 0); None under total internal reflection. The IOR is
+/// f64 or a Dual (its gradient).
 #[inline(always)]
-fn refraction_cosines(cos_i: f64, eta: f64) -> Option<(f64, f64, f64)> {
-    let (cos_i, eta) = if cos_i < 0.0 { (-cos_i, 1.0 / eta) } else { (cos_i, eta) };
+fn refraction_cosines<T: Real>(cos_i: f64, eta: T) -> Option<(f64, T, T)> {
+    let (cos_i, eta) = if cos_i < 0.0 { (-cos_i, T::from(1.0) / eta) } else { (cos_i, eta) };
     let cos_i = cos_i.min(1.0);
-    let sin2_t = (1.0 - cos_i * cos_i) / (eta * eta);
-    (sin2_t < 1.0).then(|| (cos_i, eta, (1.0 - sin2_t).sqrt()))
+    let sin2_t = T::from(1.0 - cos_i * cos_i) / (eta * eta);
+    (sin2_t.value() < 1.0).then(|| (cos_i, eta, (T::from(1.0) - sin2_t).sqrt()))
 }
 
 /// Exact unpolarized dielectric Fresnel reflectance (Born & Wolf §1.5). `cos_i` is the cosine of the incident
 /// direction with the normal on the side of the incidence; a negative `cos_i` means incidence from inside, where
 /// the relative IOR becomes 1/`eta`. `eta` = η_inside / η_outside. Returns 1 under total internal reflection.
 #[inline(always)]
-pub fn dielectric(cos_i: f64, eta: f64) -> f64 {
-    let Some((cos_i, eta, cos_t)) = refraction_cosines(cos_i, eta) else { return 1.0 };
-    let r_s = (cos_i - eta * cos_t) / (cos_i + eta * cos_t);
+pub fn dielectric<T: Real>(cos_i: f64, eta: T) -> T {
+    let Some((cos_i, eta, cos_t)) = refraction_cosines(cos_i, eta) else { return T::from(1.0) };
+    let r_s = (T::from(cos_i) - eta * cos_t) / (eta * cos_t + cos_i);
     let r_p = (eta * cos_i - cos_t) / (eta * cos_i + cos_t);
-    0.5 * (r_s * r_s + r_p * r_p)
+    (r_s * r_s + r_p * r_p) * 0.5
 }
 
 /// Transmittance 1 − F of `dielectric`, in a form without cancellation near grazing incidence (where F → 1):
 /// 1 − r² = (1 − r)(1 + r) for each polarization, T_s = 4η cos_i cos_t / (cos_i + η cos_t)²,
 /// T_p = 4η cos_i cos_t / (η cos_i + cos_t)². 0 under total internal reflection.
 #[inline(always)]
-pub fn dielectric_transmittance(cos_i: f64, eta: f64) -> f64 {
-    let Some((cos_i, eta, cos_t)) = refraction_cosines(cos_i, eta) else { return 0.0 };
-    let (s, p) = (cos_i + eta * cos_t, eta * cos_i + cos_t);
-    2.0 * eta * cos_i * cos_t * (1.0 / (s * s) + 1.0 / (p * p))
+pub fn dielectric_transmittance<T: Real>(cos_i: f64, eta: T) -> T {
+    let Some((cos_i, eta, cos_t)) = refraction_cosines(cos_i, eta) else { return T::from(0.0) };
+    let (s, p) = (eta * cos_t + cos_i, eta * cos_i + cos_t);
+    eta * 2.0 * cos_i * cos_t * (T::from(1.0) / (s * s) + T::from(1.0) / (p * p))
 }
 
 /// Exact unpolarized conductor Fresnel reflectance for the relative complex IOR `eta` + i`k`
@@ -108,11 +109,12 @@ pub fn lazanyi_transmittance(cos_i: f64, eta: f64, k: f64) -> f64 {
 /// side with relative IOR `eta`: F̄ = 2 ∫₀¹ F(μ, eta) μ dμ. For eta > 1 the integrand is smooth (Gauss–Legendre,
 /// ~1e-12); for eta < 1 energy balance across the interface (Snell: η_i² μ dμ = η_t² μ_t dμ_t) gives exactly
 /// F̄(eta) = 1 − eta² (1 − F̄(1/eta)), which avoids the √-kink at the critical angle.
-pub fn diffuse_reflectance(eta: f64) -> f64 {
-    if eta < 1.0 {
-        return 1.0 - eta * eta * (1.0 - diffuse_reflectance(1.0 / eta));
+pub fn diffuse_reflectance<T: Real>(eta: T) -> T {
+    let one = T::from(1.0);
+    if eta.value() < 1.0 {
+        return one - eta * eta * (one - diffuse_reflectance(one / eta));
     }
-    crate::quadrature::integrate(|mu| 2.0 * mu * dielectric(mu, eta), 0.0, 1.0, 8)
+    crate::quadrature::integrate(|mu: T| mu * 2.0 * dielectric(mu.value(), eta), T::from(0.0), one, 8)
 }
 
 /// Which Fresnel term a model uses for conductors.
