@@ -126,14 +126,8 @@ impl Prepared {
 /// Duals: a rough conductor's η, κ (exact Fresnel), αx, αy and frame angle; a diffuse base's albedo and Oren–Nayar σ;
 /// a smooth coat's η (F̄_int's quadrature included) and the albedo beneath it.
 fn gradient<const N: usize>(p: &Prepared, seeds: &[Seed]) -> Result<Gradient<'static>> {
-    let dual_at = |layer: usize, field: Field, channel: usize, v: f64| {
-        let mut x = Dual::<N>::from(v);
-        let seeded = |s: &&Seed| s.layer == layer && s.field == field && s.channel.is_none_or(|c| c == channel);
-        for s in seeds.iter().filter(seeded) {
-            x.d[s.param] += s.scale;
-        }
-        x
-    };
+    let dual_at =
+        |layer: usize, field: Field, channel: usize, v: f64| super::seeded::<N>(seeds, layer, field, channel, v);
     let dual = |field: Field, channel: usize, v: f64| dual_at(0, field, channel, v);
     let takes = |fields: &[Field], what: &str| match seeds.iter().find(|s| !fields.contains(&s.field)) {
         Some(s) => value_error(format!(
@@ -141,10 +135,6 @@ fn gradient<const N: usize>(p: &Prepared, seeds: &[Seed]) -> Result<Gradient<'st
             Field::NAMES[Field::ALL.iter().position(|f| *f == s.field).unwrap_or(0)]
         )),
         None => Ok(()),
-    };
-    let write = |out: &mut [f64], c: usize, f: Dual<N>| {
-        out[c * (N + 1)] = f.v;
-        out[c * (N + 1) + 1..(c + 1) * (N + 1)].copy_from_slice(&f.d);
     };
     match p {
         Prepared::Conductor { mf, g2, fresnel, eta, k } => {
@@ -171,7 +161,7 @@ fn gradient<const N: usize>(p: &Prepared, seeds: &[Seed]) -> Result<Gradient<'st
                 }
                 if let Some((geo, cos_h)) = bsdf::reflection_geometry(&mfd, g2, wi, wo) {
                     for c in 0..eta.len() {
-                        write(out, c, geo * fresnel::conductor(cos_h, eta[c], k[c]));
+                        super::store(out, c, geo * fresnel::conductor(cos_h, eta[c], k[c]));
                     }
                 }
             }))
@@ -183,7 +173,7 @@ fn gradient<const N: usize>(p: &Prepared, seeds: &[Seed]) -> Result<Gradient<'st
             Ok(Box::new(move |wi, wo, out| {
                 let shape = diffuse::oren_nayar_shape(sigma, wi, wo);
                 for (c, &a) in albedo.iter().enumerate() {
-                    write(out, c, a * shape);
+                    super::store(out, c, a * shape);
                 }
             }))
         }
@@ -202,7 +192,7 @@ fn gradient<const N: usize>(p: &Prepared, seeds: &[Seed]) -> Result<Gradient<'st
                     return;
                 }
                 for c in 0..eta.len() {
-                    write(out, c, smooth_coat_lambert(albedo[c], eta[c], f_int[c], wi.z, wo.z));
+                    super::store(out, c, smooth_coat_lambert(albedo[c], eta[c], f_int[c], wi.z, wo.z));
                 }
             }))
         }

@@ -22,6 +22,7 @@ pub mod weidlich_wilkie;
 pub use common::block::{eval_fan, eval_one, BLOCK, MAX_INPUTS};
 pub use common::options::{Args, OptionKind, OptionSpec, Value};
 
+use crate::dual::Dual;
 use crate::engine::Rows;
 use crate::error::{py, py_list, value_error, Result};
 use crate::optics::distribution::Microfacet;
@@ -172,6 +173,21 @@ impl std::str::FromStr for Field {
 
 /// The most parameters one gradient takes.
 pub const MAX_PARAMS: usize = 8;
+
+/// Number `v` of `layer`'s `field` in `channel` as a Dual carrying the derivatives that `seeds` give it.
+pub fn seeded<const N: usize>(seeds: &[Seed], layer: usize, field: Field, channel: usize, v: f64) -> Dual<N> {
+    let mut x = Dual::<N>::from(v);
+    for s in seeds.iter().filter(|s| s.layer == layer && s.field == field && s.channel.is_none_or(|c| c == channel)) {
+        x.d[s.param] += s.scale;
+    }
+    x
+}
+
+/// Writes f and its N derivatives, channel c of a `Gradient`'s output.
+pub fn store<const N: usize>(out: &mut [f64], c: usize, f: Dual<N>) {
+    out[c * (N + 1)] = f.v;
+    out[c * (N + 1) + 1..(c + 1) * (N + 1)].copy_from_slice(&f.d);
+}
 
 /// `g::<N>(args)` with the Dual width N = `n` (1 to MAX_PARAMS): one monomorphised gradient per parameter count.
 macro_rules! dual_width {

@@ -85,7 +85,7 @@ impl Fgd {
     /// Quadrilinear lookup of FGD(μ, α, η, κ), in f64 or in Duals (the derivative of the interpolant).
     pub fn lookup<T: Real>(&self, mu: T, alpha: T, eta: T, kappa: T) -> T {
         let eta = (eta / ETA_MIN).ln() / (ETA_MAX / ETA_MIN).ln();
-        self.grid.lookup_real([mu, alpha, eta, (kappa / KAPPA_MAX).max_c(0.0).sqrt()])[0]
+        self.grid.lookup([mu, alpha, eta, (kappa / KAPPA_MAX).max_c(0.0).sqrt()])[0]
     }
 }
 

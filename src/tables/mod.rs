@@ -137,31 +137,10 @@ impl<const D: usize, const W: usize> Grid<D, W> {
         &self.data
     }
 
-    /// The record interpolated at coordinates `x` (each clamped to [0, 1]).
+    /// The record interpolated at coordinates `x` (each clamped to [0, 1]), in f64 or in Duals: the derivatives are
+    /// those of the weights (0 along an axis clamped at its ends).
     #[inline(always)]
-    pub fn lookup(&self, x: [f64; D]) -> [f64; W] {
-        let corner: [(usize, f64); D] = std::array::from_fn(|d| node(x[d], self.dims[d]));
-        let base: usize = corner.iter().zip(&self.strides).map(|(&(i, _), s)| i * s).sum();
-        let mut out = [0.0; W];
-        for k in 0..1usize << D {
-            let (mut weight, mut index) = (1.0, base);
-            for (d, (&(_, f), stride)) in corner.iter().zip(&self.strides).enumerate() {
-                let bit = (k >> (D - 1 - d)) & 1; // the last axis varies fastest
-                weight *= if bit == 1 { f } else { 1.0 - f };
-                index += bit * stride;
-            }
-            if weight != 0.0 {
-                for (o, &v) in out.iter_mut().zip(&self.data[index * W..][..W]) {
-                    *o += weight * v as f64;
-                }
-            }
-        }
-        out
-    }
-
-    /// `lookup` in f64 or in Duals: the same interpolant, whose derivatives are those of the weights (0 along an
-    /// axis clamped at its ends).
-    pub fn lookup_real<T: Real>(&self, x: [T; D]) -> [T; W] {
+    pub fn lookup<T: Real>(&self, x: [T; D]) -> [T; W] {
         let corner: [(usize, f64); D] = std::array::from_fn(|d| node(x[d].value(), self.dims[d]));
         let fraction: [T; D] = std::array::from_fn(|d| {
             let (i, f) = corner[d];

@@ -147,14 +147,15 @@ pub struct Prepared {
     stack: Stack,
 }
 
-/// A stack's steps and its Lambertian base (albedo per channel, η of the medium above it against the outside).
-type Layers<T> = (Vec<Step<T>>, Option<(Vec<T>, T)>);
+/// A stack's steps and its Lambertian base.
+type Layers<T> = (Vec<Step<T>>, Option<DiffuseBase<T>>);
 
-/// The steps of `stack` and its base, each number through `value(layer, field, channel, number)`: the identity, or
-/// a Dual seeded for gradients. With `every_slab`, each dielectric gets a slab step, even one that does nothing (a
-/// gradient by the thickness or σ where they are 0).
+/// The steps of `stack` and its base (with R̄↑ under `opts`), each number through `value(layer, field, channel,
+/// number)`: the identity, or a Dual seeded for gradients. With `every_slab`, each dielectric gets a slab step, even
+/// one that does nothing (a gradient by the thickness or σ where they are 0).
 fn layers<T: Real>(
     stack: &Stack,
+    opts: &Options,
     value: impl Fn(usize, Field, usize, f64) -> T,
     every_slab: bool,
 ) -> Result<Layers<T>> {
@@ -197,17 +198,16 @@ fn layers<T: Real>(
             }
         }
     }
+    let diffuse = diffuse.map(|(albedo, eta)| {
+        let r_up = adding::hemispherical_reflectance_from_below(&steps, opts, stack.channels, eta);
+        DiffuseBase { albedo, eta, r_up }
+    });
     Ok((steps, diffuse))
 }
 
 pub fn prepare(stack: &Stack, opts: &Options) -> Result<Prepared> {
-    let (steps, diffuse) = layers(stack, |_, _, _, v| v, false)?;
+    let (steps, diffuse) = layers(stack, opts, |_, _, _, v| v, false)?;
     let anisotropic = steps.iter().any(|s| matches!(s, Step::Interface { alpha, .. } if alpha.0 != alpha.1));
-    let channels = stack.channels;
-    let diffuse = diffuse.map(|(albedo, eta)| {
-        let r_up = adding::hemispherical_reflectance_from_below(&steps, opts, channels, eta);
-        DiffuseBase { albedo, eta, r_up }
-    });
     let mut p = Prepared {
         steps,
         anisotropic,
@@ -215,7 +215,7 @@ pub fn prepare(stack: &Stack, opts: &Options) -> Result<Prepared> {
         table: None,
         table_f32: None,
         opts: *opts,
-        channels,
+        channels: stack.channels,
         stack: stack.clone(),
     };
     if opts.interpolated {
@@ -234,28 +234,14 @@ fn gradient<const N: usize>(p: &Prepared, seeds: &[Seed]) -> Result<Gradient<'st
     if p.opts.tir != Tir::Off || p.opts.microfacet_transmission {
         return value_error("gradients of model 'belcour' take tir='off' and microfacet_transmission=False");
     }
-    let value = |layer: usize, field: Field, channel: usize, v: f64| {
-        let mut x = Dual::<N>::from(v);
-        for s in seeds.iter().filter(|s| s.layer == layer && s.field == field && s.channel.is_none_or(|c| c == channel))
-        {
-            x.d[s.param] += s.scale;
-        }
-        x
-    };
-    let (steps, diffuse) = layers(&p.stack, value, true)?;
-    let (opts, channels) = (p.opts, p.channels);
-    let diffuse = diffuse.map(|(albedo, eta)| {
-        let r_up = adding::hemispherical_reflectance_from_below(&steps, &opts, channels, eta);
-        DiffuseBase { albedo, eta, r_up }
-    });
-    let f = vec![Dual::<N>::from(0.0); channels];
+    let value =
+        |layer: usize, field: Field, channel: usize, v: f64| super::seeded::<N>(seeds, layer, field, channel, v);
+    let (steps, diffuse) = layers(&p.stack, &p.opts, value, true)?;
+    let opts = p.opts;
     Ok(Box::new(move |wi, wo, out| {
-        let mut f = f.clone();
+        let mut f = vec![Dual::<N>::from(0.0); out.len() / (N + 1)];
         eval_exact(&steps, diffuse.as_ref(), &opts, wi, wo, &mut f);
-        for (c, x) in f.iter().enumerate() {
-            out[c * (N + 1)] = x.v;
-            out[c * (N + 1) + 1..(c + 1) * (N + 1)].copy_from_slice(&x.d);
-        }
+        f.into_iter().enumerate().for_each(|(c, x)| super::store(out, c, x));
     }))
 }
 
