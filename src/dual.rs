@@ -8,6 +8,9 @@ use std::ops::{Add, Div, Mul, Neg, Sub};
 /// A real number as the generic primitives compute with it: f64, or a Dual carrying derivatives.
 pub trait Real:
     Copy
+    + Send
+    + Sync
+    + std::iter::Sum
     + From<f64>
     + Add<Output = Self>
     + Sub<Output = Self>
@@ -190,6 +193,13 @@ impl<const N: usize> Div<f64> for Dual<N> {
     #[inline(always)]
     fn div(self, c: f64) -> Self {
         self * (1.0 / c)
+    }
+}
+
+/// Sums from −0.0, as f64's `Sum` does.
+impl<const N: usize> std::iter::Sum for Dual<N> {
+    fn sum<I: Iterator<Item = Self>>(it: I) -> Self {
+        it.fold(Dual::from(-0.0), |a, b| a + b)
     }
 }
 

@@ -1,6 +1,7 @@
 //! Random numbers and direction sampling shared by the Monte Carlo code. Every sample has its own stream, seeded
 //! from (seed, sample index), so results depend on neither the thread count nor the evaluation order.
 
+use crate::dual::Real;
 use glam::DVec3;
 use std::f64::consts::PI;
 
@@ -44,9 +45,9 @@ pub fn cosine_hemisphere(u1: f64, u2: f64) -> DVec3 {
 }
 
 /// Henyey–Greenstein phase function p(cos θ) = (1 − g²) / (4π (1 + g² − 2g cos θ)^{3/2}), θ the scattering angle.
-pub fn henyey_greenstein(cos_theta: f64, g: f64) -> f64 {
-    let d = 1.0 + g * g - 2.0 * g * cos_theta;
-    (1.0 - g * g) / (4.0 * PI * d * d.sqrt())
+pub fn henyey_greenstein<T: Real>(cos_theta: f64, g: T) -> T {
+    let d = g * g + 1.0 - g * 2.0 * cos_theta;
+    (T::from(1.0) - g * g) / (d * (4.0 * PI) * d.sqrt())
 }
 
 /// Samples a new propagation direction scattered from `dir` by Henyey–Greenstein with asymmetry g (inversion of

@@ -3,6 +3,8 @@
 //! (reference.rs) samples these boundaries and slabs; the adding-doubling solver (tables/adding_doubling.rs) projects
 //! them onto its grid. Both read them from here, so that they solve the same transport.
 
+use crate::dual::Real;
+use crate::models::Field;
 use crate::optics::distribution::{Distribution, G2Form, Microfacet};
 use crate::optics::{diffuse, fresnel};
 use crate::stack::{Layer, Stack};
@@ -16,58 +18,76 @@ pub struct Microsurface {
     pub g2: G2Form,
 }
 
-/// One interface as a path sees it: roughness and the relative IOR η_below / η_above.
-pub struct Interface {
+/// One interface as a path sees it: roughness and the relative IOR η_below / η_above (f64, or a Dual).
+pub struct Interface<T = f64> {
     pub mf: Microfacet,
-    pub eta: f64,
+    pub eta: T,
 }
 
-/// The medium below an interface: thickness and coefficients.
-pub struct Slab {
-    pub thickness: f64,
-    pub sigma_a: f64,
-    pub sigma_s: f64,
-    pub g: f64,
+/// The medium below an interface: thickness and coefficients (f64, or Duals: `ChannelStack::with_values`).
+pub struct Slab<T = f64> {
+    pub thickness: T,
+    pub sigma_a: T,
+    pub sigma_s: T,
+    pub g: T,
 }
 
-/// The opaque base.
-pub enum Base {
-    Conductor { mf: Microfacet, eta: f64, k: f64 },
-    Diffuse { albedo: f64, sigma: f64 },
+/// The opaque base (f64, or Duals).
+pub enum Base<T = f64> {
+    Conductor { mf: Microfacet<T>, eta: T, k: T },
+    Diffuse { albedo: T, sigma: T },
 }
 
 /// The stack resolved for one channel: interface i is the top of slab i; the base lies below the last slab. Boundary
-/// b is interface b, or the base when b equals the number of interfaces.
-pub struct ChannelStack {
-    pub interfaces: Vec<Interface>,
-    pub slabs: Vec<Slab>,
-    pub base: Base,
+/// b is interface b, or the base when b equals the number of interfaces. Its numbers are f64, or Duals carrying
+/// parameter derivatives (an interface's roughness stays f64).
+pub struct ChannelStack<T = f64> {
+    pub interfaces: Vec<Interface<T>>,
+    pub slabs: Vec<Slab<T>>,
+    pub base: Base<T>,
     pub g2: G2Form,
 }
 
 impl ChannelStack {
     pub fn new(stack: &Stack, channel: usize, surface: Microsurface) -> ChannelStack {
+        ChannelStack::with_values(stack, channel, surface, |_, _, v| v)
+    }
+}
+
+impl<T: Real> ChannelStack<T> {
+    /// Channel `channel` of `stack` with each number v of layer i's field taken as `value(i, field, v)`: f64, or a
+    /// Dual seeded by a gradient's parameters (models::seeded); an interface's roughness is f64.
+    pub fn with_values(
+        stack: &Stack,
+        channel: usize,
+        surface: Microsurface,
+        value: impl Fn(usize, Field, f64) -> T,
+    ) -> ChannelStack<T> {
         let (mut interfaces, mut slabs) = (Vec::new(), Vec::new());
         let g2 = surface.g2;
-        for (layer, rel) in stack.layers.iter().zip(stack.interfaces()) {
+        for (i, (layer, rel)) in stack.layers.iter().zip(stack.interfaces()).enumerate() {
             let mf = layer.microfacet(surface.distribution);
             match layer {
                 Layer::Dielectric { thickness, sigma_a, sigma_s, g, .. } => {
-                    interfaces.push(Interface { mf: mf.unwrap(), eta: rel.eta[channel] });
+                    interfaces.push(Interface { mf: mf.unwrap(), eta: value(i, Field::Ior, rel.eta[channel]) });
                     slabs.push(Slab {
-                        thickness: *thickness,
-                        sigma_a: sigma_a[channel],
-                        sigma_s: sigma_s[channel],
-                        g: *g,
+                        thickness: value(i, Field::Thickness, *thickness),
+                        sigma_a: value(i, Field::SigmaA, sigma_a[channel]),
+                        sigma_s: value(i, Field::SigmaS, sigma_s[channel]),
+                        g: value(i, Field::G, *g),
                     });
                 }
-                Layer::Conductor { .. } => {
-                    let base = Base::Conductor { mf: mf.unwrap(), eta: rel.eta[channel], k: rel.kappa[channel] };
-                    return ChannelStack { interfaces, slabs, base, g2 };
+                Layer::Conductor { alpha, angle, .. } => {
+                    let (ax, ay) = (value(i, Field::RoughnessX, alpha.0), value(i, Field::RoughnessY, alpha.1));
+                    let mf =
+                        Microfacet::<T>::with_parameters(surface.distribution, ax, ay, value(i, Field::Angle, *angle));
+                    let (eta, k) = (value(i, Field::Ior, rel.eta[channel]), value(i, Field::K, rel.kappa[channel]));
+                    return ChannelStack { interfaces, slabs, base: Base::Conductor { mf, eta, k }, g2 };
                 }
                 Layer::Diffuse { albedo, roughness } => {
-                    let base = Base::Diffuse { albedo: albedo[channel], sigma: *roughness };
-                    return ChannelStack { interfaces, slabs, base, g2 };
+                    let albedo = value(i, Field::Albedo, albedo[channel]);
+                    let sigma = value(i, Field::DiffuseRoughness, *roughness);
+                    return ChannelStack { interfaces, slabs, base: Base::Diffuse { albedo, sigma }, g2 };
                 }
             }
         }
@@ -75,17 +95,28 @@ impl ChannelStack {
     }
 
     /// BSDF value f(w_light, w_view) of boundary `b`: light arrives along w_light and leaves along w_view, both
-    /// pointing away from the boundary (Walter et al. 2007 for rough interfaces, Oren–Nayar 1994 for the base).
-    pub fn boundary_f(&self, b: usize, w_light: DVec3, w_view: DVec3) -> f64 {
+    /// pointing away from the boundary (Walter et al. 2007 for rough interfaces, Oren–Nayar 1994 for the base). A
+    /// rough interface's f carries no derivatives.
+    pub fn boundary_f(&self, b: usize, w_light: DVec3, w_view: DVec3) -> T {
         if let Some(it) = self.interfaces.get(b) {
-            return crate::bsdf::rough_dielectric(&it.mf, self.g2, it.eta, w_light, w_view);
+            return T::from(crate::bsdf::rough_dielectric(&it.mf, self.g2, it.eta.value(), w_light, w_view));
         }
         match &self.base {
             Base::Conductor { mf, eta, k } => crate::bsdf::rough_conductor(mf, self.g2, *eta, *k, w_light, w_view),
-            Base::Diffuse { albedo, sigma } => albedo * diffuse::oren_nayar_shape(*sigma, w_light, w_view),
+            Base::Diffuse { albedo, sigma } => *albedo * diffuse::oren_nayar_shape(*sigma, w_light, w_view),
         }
     }
 
+    /// True when boundary `b` scatters through Dirac deltas only (a smooth interface or a smooth conductor).
+    pub fn is_delta(&self, b: usize) -> bool {
+        match self.interfaces.get(b) {
+            Some(it) => it.mf.is_smooth(),
+            None => matches!(&self.base, Base::Conductor { mf, .. } if mf.is_smooth()),
+        }
+    }
+}
+
+impl ChannelStack {
     /// The Dirac part of the reflection of boundaries b, b + 1, … for light arriving at zenith cosine `mu` above
     /// boundary b: the paths that meet only smooth boundaries and cross the slabs unscattered. Interface b over what
     /// lies below it (R, seen at the refracted cosine μt, attenuated there and back by e^{−2τ/μt}, Beer–Lambert) sums
@@ -111,13 +142,5 @@ impl ChannelStack {
         let tau = (sl.sigma_a + sl.sigma_s) * sl.thickness;
         let below = if tau > 0.0 { (-2.0 * tau / mu_t).exp() } else { 1.0 } * self.dirac_reflectance(b + 1, mu_t);
         f + (1.0 - f) * (1.0 - f) * below / (1.0 - f * below)
-    }
-
-    /// True when boundary `b` scatters through Dirac deltas only (a smooth interface or a smooth conductor).
-    pub fn is_delta(&self, b: usize) -> bool {
-        match self.interfaces.get(b) {
-            Some(it) => it.mf.is_smooth(),
-            None => matches!(&self.base, Base::Conductor { mf, .. } if mf.is_smooth()),
-        }
     }
 }

@@ -9,6 +9,11 @@
 //! | `distribution` | string | `ggx`               | microfacet distribution of every rough boundary, as the reference's |
 //! | `g2`           | string | `height_correlated` | masking-shadowing, as the reference's                          |
 //!
+//! Gradients (`Stack.eval_grad`): the adding-doubling solved again in Duals (tables/adding_doubling.rs is generic
+//! over `Real`: every operator, product and solve carries the derivatives), exact for a coat's thickness, σa, σs and
+//! g, a smooth coat's IOR, the conductor base's η and κ and the diffuse base's albedo and σ; a rough interface's IOR
+//! and roughness, which move its lobes' sample normals and half vectors, are refused.
+//!
 //! Isotropic stacks only: anisotropic roughness raises a ValueError. A table holds (N_THETA + 1)² N_PHI f32 per
 //! channel, each reciprocal pair once (0.81 MiB for RGB). Sampling: the top's visible normals and the inner rough
 //! boundaries' lobes (each at least as rough as the layers above it), weighted by their energies, and the cosine.
@@ -19,7 +24,9 @@
 use super::common::block::{simd_columns, BLOCK};
 use super::common::mixture::defensive_mixture;
 use super::common::options::{microsurface, DISTRIBUTION, G2};
-use super::{microfacet, InputSpec, Model, ModelInfo, OptionSpec, Properties, Proposal};
+use super::{microfacet, Field, Gradient, InputSpec, Model, ModelInfo, OptionSpec, Properties, Proposal, Seed};
+use crate::bsdf::rough_dielectric;
+use crate::dual::Dual;
 use crate::engine::{self, Floats, Rows, LANES, V3};
 use crate::error::{value_error, Result};
 use crate::models::FitLanes;
@@ -27,7 +34,8 @@ use crate::optics::distribution::{G2Form, Microfacet};
 use crate::optics::fresnel::{self, FresnelForm};
 use crate::optics::lanes::{self, Ggx};
 use crate::stack::{Layer, Stack};
-use crate::tables::adding_doubling::{pair, tabulate, Cells, NODES, N_PHI, N_THETA, ORDERS, PAIRS};
+use crate::tables::adding_doubling::PAIRS;
+use crate::tables::adding_doubling::{channel_key, node_values, pair, tabulate, Cells, NODES, N_PHI, N_THETA, ORDERS};
 use crate::tables::{cached, node, node_lanes};
 use crate::transport::{ChannelStack, Microsurface};
 use glam::DVec3;
@@ -39,7 +47,7 @@ pub const INFO: ModelInfo = ModelInfo {
     options: &[DISTRIBUTION, G2] as &[OptionSpec],
     inputs: &[] as &[InputSpec],
     properties: Properties { reciprocal: true, energy_conserving: true, anisotropic: false, spectral: true },
-    gradients: &[],
+    gradients: &["ior", "k", "albedo", "diffuse_roughness", "thickness", "sigma_a", "sigma_s", "g"],
     prepare: |stack, args| prepare(stack, microsurface(args)?),
     #[cfg(feature = "gpu")]
     gpu: Some(&gpu::HALF),
@@ -58,6 +66,9 @@ pub struct Prepared {
     /// the table's albedo per zenith node.
     lobes: Vec<Microfacet>,
     albedo_below_top: Vec<f64>,
+    /// What the table was solved for, which the gradient solves again in Duals.
+    stack: Stack,
+    surface: Microsurface,
 }
 
 /// The file name of the cached table of `stack` on `surface` (a hash of everything the table depends on).
@@ -131,13 +142,23 @@ fn tabulate_stack(stack: &Stack, surface: Microsurface) -> Result<Prepared> {
         .collect();
     let eta = stack.interfaces().swap_remove(0).eta;
     let channels = (0..ch).map(|c| ChannelStack::new(stack, c, surface)).collect();
-    Ok(Prepared { table, top, g2: surface.g2, eta, channels, lobes, albedo_below_top })
+    let stack = stack.clone();
+    Ok(Prepared { table, top, g2: surface.g2, eta, channels, lobes, albedo_below_top, stack, surface })
 }
 
 /// The table coordinate x = √(1 − cos θ) of zenith cosine z.
 #[inline(always)]
 pub(crate) fn zenith(z: f64) -> f64 {
     (1.0 - z).max(0.0).sqrt()
+}
+
+/// The table's coordinates of the pair (wi, wo): for θi, θo and the azimuth between the travel directions
+/// (y = sin(φ/2) = √((1 − cos φ)/2), cos φ = −cos(φi − φo)), the node below and the weight of the one above.
+#[inline(always)]
+fn coordinates(wi: DVec3, wo: DVec3) -> [(usize, f64); 3] {
+    let d = ((wi.x * wi.x + wi.y * wi.y) * (wo.x * wo.x + wo.y * wo.y)).sqrt();
+    let cos_phi = if d > 0.0 { -(wi.x * wo.x + wi.y * wo.y) / d } else { 1.0 };
+    [node(zenith(wi.z), NODES), node(zenith(wo.z), NODES), node((0.5 * (1.0 - cos_phi)).max(0.0).sqrt(), N_PHI)]
 }
 
 impl Prepared {
@@ -170,12 +191,8 @@ impl Prepared {
         // below the horizon get no weight.
         let ([mut i, mut o, mut p], [mut fi, mut fo, mut fp]) = ([[0usize; BLOCK]; 3], [[0.0; BLOCK]; 3]);
         for r in 0..n {
-            // The azimuth between the travel directions: y = sin(φ/2) = √((1 − cos φ)/2), cos φ = −cos(φi − φo).
-            let d = ((ix[r] * ix[r] + iy[r] * iy[r]) * (ox[r] * ox[r] + oy[r] * oy[r])).sqrt();
-            let cos_phi = if d > 0.0 { -(ix[r] * ox[r] + iy[r] * oy[r]) / d } else { 1.0 };
-            (i[r], fi[r]) = node(zenith(iz[r]), NODES);
-            (o[r], fo[r]) = node(zenith(oz[r]), NODES);
-            (p[r], fp[r]) = node((0.5 * (1.0 - cos_phi)).max(0.0).sqrt(), N_PHI);
+            let at = coordinates(DVec3::new(ix[r], iy[r], iz[r]), DVec3::new(ox[r], oy[r], oz[r]));
+            ((i[r], fi[r]), (o[r], fo[r]), (p[r], fp[r])) = (at[0], at[1], at[2]);
         }
         // The corners, gathered: the channel count a constant for RGB, so that each record is a fixed-size read.
         let corners = Corners { i, o, p, fi, fo, fp };
@@ -355,12 +372,76 @@ impl Model for Prepared {
         defensive_mixture(terms)
     }
 
+    fn gradient(&self, seeds: &[Seed], n_params: usize) -> Result<Gradient<'_>> {
+        super::dual_width!(n_params, gradient(self, seeds))
+    }
+
     fn specular(&self, wo: DVec3, out: &mut [f64]) {
         out.fill(0.0);
         if wo.z > 0.0 && self.top.is_none() {
             out.iter_mut().zip(&self.channels).for_each(|(o, s)| *o = s.dirac_reflectance(0, wo.z));
         }
     }
+}
+
+/// Whether the table's solve differentiates `field` of `layer`: a coat's coefficients and a smooth coat's IOR, and the
+/// base's numbers (a diffuse base sees no IOR: its derivative is 0); a rough interface's IOR and roughness move its
+/// lobes' sample normals and half vectors, which the solve does not differentiate.
+fn differentiable(layer: &Layer, field: Field) -> bool {
+    match layer {
+        Layer::Dielectric { alpha, .. } => {
+            matches!(field, Field::Thickness | Field::SigmaA | Field::SigmaS | Field::G)
+                || (field == Field::Ior && *alpha == (0.0, 0.0))
+        }
+        Layer::Conductor { .. } => matches!(field, Field::Ior | Field::K),
+        Layer::Diffuse { .. } => matches!(field, Field::Albedo | Field::DiffuseRoughness | Field::Ior),
+    }
+}
+
+/// f and its gradient (`Model::gradient`): the table solved again in Duals (forward-mode adding-doubling: every
+/// operator, product and solve carries the derivatives), f64 throughout, interpolated as `eval` interpolates the
+/// table; the top's reflection depends on no differentiable field.
+fn gradient<'a, const N: usize>(p: &'a Prepared, seeds: &[Seed]) -> Result<Gradient<'a>> {
+    if let Some(s) = seeds.iter().find(|s| !differentiable(&p.stack.layers[s.layer], s.field)) {
+        return value_error(format!(
+            "model 'tabulated' differentiates a coat's thickness, sigma_a, sigma_s and g, a smooth coat's ior, a \
+             conductor base's ior and k and a diffuse base's albedo and diffuse_roughness, not {} of layer {} ({}); \
+             'belcour' differentiates rough interfaces",
+            Field::NAMES[Field::ALL.iter().position(|f| *f == s.field).unwrap_or(0)],
+            s.layer,
+            p.stack.layers[s.layer].name()
+        ));
+    }
+    let stack = &p.stack;
+    let channel = |c: usize| {
+        ChannelStack::with_values(stack, c, p.surface, |l, field, v| super::seeded::<N>(seeds, l, field, c, v))
+    };
+    // Channels of equal constants and equal seeds share a solve.
+    let key = |c: usize| {
+        let own = seeds.iter().filter(|s| s.channel.is_none_or(|k| k == c)).map(|s| Seed { channel: None, ..*s });
+        (channel_key(stack, c), own.collect::<Vec<Seed>>())
+    };
+    let clip = |f: Dual<N>| if f.v > 0.0 { f } else { Dual::from(0.0) };
+    let table: Vec<Dual<N>> = node_values(stack.channels, channel, key)?.into_iter().map(clip).collect();
+    Ok(Box::new(move |wi, wo, out| {
+        let ch = p.eta.len();
+        let mut f = vec![Dual::<N>::from(0.0); ch];
+        if wi.z > 0.0 && wo.z > 0.0 {
+            if let Some(mf) = &p.top {
+                f.iter_mut().zip(&p.eta).for_each(|(f, &eta)| *f = rough_dielectric(mf, p.g2, eta, wi, wo).into());
+            }
+            let [(i, fi), (o, fo), (k, fp)] = coordinates(wi, wo);
+            for (di, wi_) in [(0, 1.0 - fi), (1, fi)] {
+                for (dj, wo_) in [(0, 1.0 - fo), (1, fo)] {
+                    let at = (pair(i + di, o + dj) * N_PHI + k) * ch;
+                    for (c, f) in f.iter_mut().enumerate() {
+                        *f = *f + table[at + c] * (wi_ * wo_ * (1.0 - fp)) + table[at + ch + c] * (wi_ * wo_ * fp);
+                    }
+                }
+            }
+        }
+        f.into_iter().enumerate().for_each(|(c, x)| super::store(out, c, x));
+    }))
 }
 
 /// The GPU half (shaders/tabulated.wgsl): the same table, interpolated in float32. A single opaque boundary is

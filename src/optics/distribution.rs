@@ -62,6 +62,18 @@ impl<T: Real> Microfacet<T> {
         }
     }
 
+    /// The distribution's numbers without their derivatives.
+    pub fn values(&self) -> Microfacet {
+        Microfacet {
+            dist: self.dist,
+            alpha_x: self.alpha_x.value(),
+            alpha_y: self.alpha_y.value(),
+            smooth: self.smooth,
+            cos_phi: self.cos_phi.value(),
+            sin_phi: self.sin_phi.value(),
+        }
+    }
+
     /// True when both roughnesses are zero: the interface is a perfectly smooth (Dirac) one, whose reflection and
     /// refraction are delta lobes that a BSDF evaluation does not return.
     pub fn is_smooth(&self) -> bool {

@@ -5,13 +5,13 @@ use crate::dual::Real;
 use std::ops::{Add, Mul, Sub};
 
 /// The cosines of a refraction by Snell's law: (|cos_i| clamped to 1, the relative IOR seen from the incident side,
-/// cos_t), the IOR inverted for incidence from inside (cos_i < 0); None under total internal reflection. The IOR is
-/// f64 or a Dual (its gradient).
+/// cos_t), the IOR inverted for incidence from inside (cos_i < 0); None under total internal reflection. The cosine
+/// and the IOR are f64 or Duals (their gradients).
 #[inline(always)]
-fn refraction_cosines<T: Real>(cos_i: f64, eta: T) -> Option<(f64, T, T)> {
-    let (cos_i, eta) = if cos_i < 0.0 { (-cos_i, T::from(1.0) / eta) } else { (cos_i, eta) };
-    let cos_i = cos_i.min(1.0);
-    let sin2_t = T::from(1.0 - cos_i * cos_i) / (eta * eta);
+fn refraction_cosines<T: Real>(cos_i: T, eta: T) -> Option<(T, T, T)> {
+    let (cos_i, eta) = if cos_i.value() < 0.0 { (-cos_i, T::from(1.0) / eta) } else { (cos_i, eta) };
+    let cos_i = if cos_i.value() > 1.0 { T::from(1.0) } else { cos_i };
+    let sin2_t = (T::from(1.0) - cos_i * cos_i) / (eta * eta);
     (sin2_t.value() < 1.0).then(|| (cos_i, eta, (T::from(1.0) - sin2_t).sqrt()))
 }
 
@@ -19,9 +19,9 @@ fn refraction_cosines<T: Real>(cos_i: f64, eta: T) -> Option<(f64, T, T)> {
 /// direction with the normal on the side of the incidence; a negative `cos_i` means incidence from inside, where
 /// the relative IOR becomes 1/`eta`. `eta` = η_inside / η_outside. Returns 1 under total internal reflection.
 #[inline(always)]
-pub fn dielectric<T: Real>(cos_i: f64, eta: T) -> T {
-    let Some((cos_i, eta, cos_t)) = refraction_cosines(cos_i, eta) else { return T::from(1.0) };
-    let r_s = (T::from(cos_i) - eta * cos_t) / (eta * cos_t + cos_i);
+pub fn dielectric<C: Real, T: Real + From<C>>(cos_i: C, eta: T) -> T {
+    let Some((cos_i, eta, cos_t)) = refraction_cosines(T::from(cos_i), eta) else { return T::from(1.0) };
+    let r_s = (cos_i - eta * cos_t) / (eta * cos_t + cos_i);
     let r_p = (eta * cos_i - cos_t) / (eta * cos_i + cos_t);
     (r_s * r_s + r_p * r_p) * 0.5
 }
@@ -30,8 +30,8 @@ pub fn dielectric<T: Real>(cos_i: f64, eta: T) -> T {
 /// 1 − r² = (1 − r)(1 + r) for each polarization, T_s = 4η cos_i cos_t / (cos_i + η cos_t)²,
 /// T_p = 4η cos_i cos_t / (η cos_i + cos_t)². 0 under total internal reflection.
 #[inline(always)]
-pub fn dielectric_transmittance<T: Real>(cos_i: f64, eta: T) -> T {
-    let Some((cos_i, eta, cos_t)) = refraction_cosines(cos_i, eta) else { return T::from(0.0) };
+pub fn dielectric_transmittance<C: Real, T: Real + From<C>>(cos_i: C, eta: T) -> T {
+    let Some((cos_i, eta, cos_t)) = refraction_cosines(T::from(cos_i), eta) else { return T::from(0.0) };
     let (s, p) = (eta * cos_t + cos_i, eta * cos_i + cos_t);
     eta * 2.0 * cos_i * cos_t * (T::from(1.0) / (s * s) + T::from(1.0) / (p * p))
 }

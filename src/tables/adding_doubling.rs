@@ -16,6 +16,7 @@
 //! microfacets gives (each column rescaled to it: the quadrature misses narrow lobes). The layers combine by the
 //! adding equations, order by order.
 
+use crate::dual::Real;
 use crate::error::Result;
 use crate::optics::distribution::{G2Form, Microfacet};
 use crate::optics::{fresnel, reflect, refract};
@@ -56,10 +57,11 @@ const ENERGY_NORMALS: usize = 4096;
 /// Optical thickness of the thin layer that doubling starts from (single scattering is exact to O(Δτ²/μ²)).
 const THIN: f64 = 1e-5;
 
-/// An n × n matrix, row-major: m[o * n + j] maps incident cell j to outgoing cell o.
-type Mat = Vec<f64>;
+/// An n × n matrix, row-major: m[o * n + j] maps incident cell j to outgoing cell o; f64, or Duals carrying the
+/// derivatives of a parameter gradient (the same solve differentiated in forward mode).
+type Mat<T = f64> = Vec<T>;
 /// One matrix per Fourier order.
-type Op = Vec<Mat>;
+type Op<T = f64> = Vec<Mat<T>>;
 
 /// The zenith cells: weights w_j = Δu/2 and Gauss points (u, weight), SUB per cell, weights summing to w_j.
 pub struct Cells {
@@ -94,21 +96,20 @@ impl Cells {
     }
 
     /// Average over cell j (projected solid angle) of g(μ).
-    fn average(&self, j: usize, g: impl Fn(f64) -> f64) -> f64 {
-        self.points(j).iter().map(|&(u, v)| v * g((1.0 - u).sqrt())).sum::<f64>() / self.w[j]
+    fn average<T: Real>(&self, j: usize, g: impl Fn(f64) -> T) -> T {
+        self.points(j).iter().map(|&(u, v)| g((1.0 - u).sqrt()) * v).sum::<T>() / self.w[j]
     }
 
     /// Average over cell j of the Fresnel reflectance of a smooth interface of relative IOR `eta`, the cell split at
     /// the critical angle (u = η², for η < 1): beyond it exactly 1, before it by Gauss points. A cell that straddles
     /// the critical angle thus transmits exactly the part that refraction maps into it from the other side.
-    fn fresnel_average(&self, j: usize, eta: f64) -> f64 {
+    fn fresnel_average<T: Real>(&self, j: usize, eta: T) -> T {
         let (a, b) = (self.edges[j], self.edges[j + 1]);
-        let c = if eta < 1.0 { (eta * eta).clamp(a, b) } else { b };
-        let refracting: f64 = gauss_legendre(SUB)
-            .iter()
-            .map(|&(x, v)| 0.5 * v * (c - a) * fresnel::dielectric((1.0 - (a + 0.5 * (c - a) * (x + 1.0))).sqrt(), eta))
-            .sum();
-        (refracting + (b - c)) / (b - a)
+        let c = if eta.value() < 1.0 { (eta * eta).clamp_c(a, b) } else { T::from(b) };
+        let cos = |x: f64| (T::from(1.0) - ((c - a) * 0.5 * (x + 1.0) + a)).sqrt();
+        let refracting: T =
+            gauss_legendre(SUB).iter().map(|&(x, v)| (c - a) * (0.5 * v) * fresnel::dielectric(cos(x), eta)).sum();
+        (refracting + (T::from(b) - c)) / (b - a)
     }
 }
 
@@ -124,62 +125,65 @@ fn direction(u: f64, (c, s): (f64, f64), z: f64) -> DVec3 {
     DVec3::new(sin * c, sin * s, z * (1.0 - u).sqrt())
 }
 
-fn zeros() -> Mat {
-    vec![0.0; N_THETA * N_THETA]
+fn zeros<T: Real>() -> Mat<T> {
+    vec![T::from(0.0); N_THETA * N_THETA]
 }
 
-fn diagonal(d: impl Fn(usize) -> f64) -> Mat {
+fn diagonal<T: Real>(d: impl Fn(usize) -> T) -> Mat<T> {
     let mut m = zeros();
     (0..N_THETA).for_each(|j| m[j * N_THETA + j] = d(j));
     m
 }
 
 /// The same matrix for every order (a Dirac in azimuth: smooth boundaries, direct transmission).
-fn every_order(m: Mat) -> Op {
+fn every_order<T: Real>(m: Mat<T>) -> Op<T> {
     vec![m; ORDERS]
 }
 
 /// a · b.
-fn mul(a: &[f64], b: &[f64]) -> Mat {
+fn mul<T: Real>(a: &[T], b: &[T]) -> Mat<T> {
     let n = N_THETA;
     let mut c = zeros();
     for i in 0..n {
         let row = &mut c[i * n..(i + 1) * n];
         for k in 0..n {
             let x = a[i * n + k];
-            if x != 0.0 {
-                row.iter_mut().zip(&b[k * n..(k + 1) * n]).for_each(|(c, b)| *c += x * b);
+            if !x.same(T::from(0.0)) {
+                row.iter_mut().zip(&b[k * n..(k + 1) * n]).for_each(|(c, &b)| *c = *c + x * b);
             }
         }
     }
     c
 }
 
-fn add(a: &[f64], b: &[f64]) -> Mat {
-    a.iter().zip(b).map(|(a, b)| a + b).collect()
+fn add<T: Real>(a: &[T], b: &[T]) -> Mat<T> {
+    a.iter().zip(b).map(|(&a, &b)| a + b).collect()
 }
 
 /// (I − a)⁻¹ b by Gaussian elimination with partial pivoting. I − a is non-singular (a's columns carry less energy
 /// than they receive, a product of reflectances) but for the cells of a lossless layer that totally reflect at both
 /// of its smooth boundaries: a maps such a cell onto itself with weight 1 and nothing else into or out of it, so no
 /// light reaches it. Those cells are taken out of the system (their rows of x are 0, as b's are).
-fn solve_one_minus(a: &[f64], b: &[f64]) -> Mat {
+fn solve_one_minus<T: Real>(a: &[T], b: &[T]) -> Mat<T> {
     let n = N_THETA;
+    let v = |k: usize| a[k].value();
     let trapped = |j: usize| {
-        let leak: f64 = (0..n).filter(|&k| k != j).map(|k| a[j * n + k].abs() + a[k * n + j].abs()).sum();
-        (1.0 - a[j * n + j]).abs() < 1e-12 && leak < 1e-12
+        let leak: f64 = (0..n).filter(|&k| k != j).map(|k| v(j * n + k).abs() + v(k * n + j).abs()).sum();
+        (1.0 - v(j * n + j)).abs() < 1e-12 && leak < 1e-12
     };
-    let mut m: Mat = (0..n * n).map(|k| if k / n == k % n { 1.0 } else { 0.0 } - a[k]).collect();
+    let (zero, one) = (T::from(0.0), T::from(1.0));
+    let mut m: Mat<T> = (0..n * n).map(|k| if k / n == k % n { one } else { zero } - a[k]).collect();
     let mut x = b.to_vec();
     for j in (0..n).filter(|&j| trapped(j)) {
         (0..n).for_each(|k| {
-            m[j * n + k] = if k == j { 1.0 } else { 0.0 };
-            m[k * n + j] = if k == j { 1.0 } else { 0.0 };
-            x[j * n + k] = 0.0;
+            m[j * n + k] = if k == j { one } else { zero };
+            m[k * n + j] = if k == j { one } else { zero };
+            x[j * n + k] = zero;
         });
     }
     for col in 0..n {
-        let p = (col..n).max_by(|&i, &k| m[i * n + col].abs().total_cmp(&m[k * n + col].abs())).unwrap();
+        let p =
+            (col..n).max_by(|&i, &k| m[i * n + col].value().abs().total_cmp(&m[k * n + col].value().abs())).unwrap();
         if p != col {
             for k in 0..n {
                 m.swap(p * n + k, col * n + k);
@@ -189,12 +193,12 @@ fn solve_one_minus(a: &[f64], b: &[f64]) -> Mat {
         let d = m[col * n + col];
         for i in col + 1..n {
             let f = m[i * n + col] / d;
-            if f != 0.0 {
+            if !f.same(zero) {
                 for k in col..n {
-                    m[i * n + k] -= f * m[col * n + k];
+                    m[i * n + k] = m[i * n + k] - f * m[col * n + k];
                 }
                 for k in 0..n {
-                    x[i * n + k] -= f * x[col * n + k];
+                    x[i * n + k] = x[i * n + k] - f * x[col * n + k];
                 }
             }
         }
@@ -202,7 +206,7 @@ fn solve_one_minus(a: &[f64], b: &[f64]) -> Mat {
     for col in (0..n).rev() {
         let d = m[col * n + col];
         for k in 0..n {
-            let s: f64 = (col + 1..n).map(|i| m[col * n + i] * x[i * n + k]).sum();
+            let s: T = (col + 1..n).map(|i| m[col * n + i] * x[i * n + k]).sum();
             x[col * n + k] = (x[col * n + k] - s) / d;
         }
     }
@@ -211,7 +215,7 @@ fn solve_one_minus(a: &[f64], b: &[f64]) -> Mat {
 
 /// The operator of a boundary (or a thin slab's scattering) with kernel f(w_light, w_view): light arrives on the
 /// side `z_light` (w_light.z has its sign, travel direction −w_light at azimuth 0) and leaves on the side `z_view`.
-fn project(cells: &Cells, z_light: f64, z_view: f64, f: &(dyn Fn(DVec3, DVec3) -> f64 + Sync)) -> Op {
+fn project<T: Real>(cells: &Cells, z_light: f64, z_view: f64, f: &(dyn Fn(DVec3, DVec3) -> T + Sync)) -> Op<T> {
     let n = N_THETA;
     let phis: Vec<(f64, f64)> = (0..PHI_SAMPLES)
         .map(|p| {
@@ -222,25 +226,25 @@ fn project(cells: &Cells, z_light: f64, z_view: f64, f: &(dyn Fn(DVec3, DVec3) -
     let cosines: Vec<f64> = (0..ORDERS)
         .flat_map(|m| (0..PHI_SAMPLES).map(move |p| (m as f64 * (p as f64 + 0.5) * PI / PHI_SAMPLES as f64).cos()))
         .collect();
-    let columns: Vec<Vec<f64>> = (0..n)
+    let columns: Vec<Vec<T>> = (0..n)
         .into_par_iter()
         .map(|j| {
-            let mut column = vec![0.0; ORDERS * n];
-            let mut sums = [0.0; PHI_SAMPLES];
+            let mut column = vec![T::from(0.0); ORDERS * n];
+            let mut sums = [T::from(0.0); PHI_SAMPLES];
             for o in 0..n {
-                sums.fill(0.0);
+                sums.fill(T::from(0.0));
                 for &(us, vs) in cells.points(j) {
                     let w_light = direction(us, (-1.0, 0.0), z_light);
                     for &(ut, vt) in cells.points(o) {
                         for (sum, &phi) in sums.iter_mut().zip(&phis) {
-                            *sum += vs * vt * f(w_light, direction(ut, phi, z_view));
+                            *sum = *sum + f(w_light, direction(ut, phi, z_view)) * (vs * vt);
                         }
                     }
                 }
                 let scale = 2.0 * PI / (PHI_SAMPLES as f64 * cells.w[o]);
                 for m in 0..ORDERS {
                     let c = &cosines[m * PHI_SAMPLES..(m + 1) * PHI_SAMPLES];
-                    column[m * n + o] = scale * sums.iter().zip(c).map(|(s, c)| s * c).sum::<f64>();
+                    column[m * n + o] = sums.iter().zip(c).map(|(&s, &c)| s * c).sum::<T>() * scale;
                 }
             }
             column
@@ -250,17 +254,17 @@ fn project(cells: &Cells, z_light: f64, z_view: f64, f: &(dyn Fn(DVec3, DVec3) -
 }
 
 /// Energy leaving each incident cell's column (order 0): Σ_o w_o S_0[o][j] / w_j.
-fn column_energy(cells: &Cells, s: &Mat, j: usize) -> f64 {
-    (0..N_THETA).map(|o| cells.w[o] * s[o * N_THETA + j]).sum::<f64>() / cells.w[j]
+fn column_energy<T: Real>(cells: &Cells, s: &Mat<T>, j: usize) -> T {
+    (0..N_THETA).map(|o| s[o * N_THETA + j] * cells.w[o]).sum::<T>() / cells.w[j]
 }
 
 /// Rescales every order of column j of `op` so that its energy is `target(j)`.
-fn rescale_columns(cells: &Cells, op: &mut Op, target: impl Fn(usize) -> f64) {
+fn rescale_columns<T: Real>(cells: &Cells, op: &mut Op<T>, target: impl Fn(usize) -> T) {
     for j in 0..N_THETA {
         let e = column_energy(cells, &op[0], j);
-        if e > 0.0 {
+        if e.value() > 0.0 {
             let k = target(j) / e;
-            op.iter_mut().for_each(|m| (0..N_THETA).for_each(|o| m[o * N_THETA + j] *= k));
+            op.iter_mut().for_each(|m| (0..N_THETA).for_each(|o| m[o * N_THETA + j] = m[o * N_THETA + j] * k));
         }
     }
 }
@@ -283,8 +287,9 @@ fn interface_energy(mf: &Microfacet, g2: G2Form, eta: f64, w: DVec3) -> (f64, f6
     (r / ENERGY_NORMALS as f64, t / ENERGY_NORMALS as f64)
 }
 
-/// What a rough conductor seen from `w` reflects: E over visible normals of F G2/G1.
-fn conductor_energy(mf: &Microfacet, g2: G2Form, eta: f64, k: f64, w: DVec3) -> f64 {
+/// What a rough conductor seen from `w` reflects: E over visible normals of F G2/G1 (in Duals by η and κ only:
+/// the normals are those of `mf`'s values).
+fn conductor_energy<T: Real>(mf: &Microfacet, g2: G2Form, eta: T, k: T, w: DVec3) -> T {
     super::visible_normals(mf, w, ENERGY_NORMALS)
         .iter()
         .map(|&m| {
@@ -292,32 +297,42 @@ fn conductor_energy(mf: &Microfacet, g2: G2Form, eta: f64, k: f64, w: DVec3) -> 
             if o.z > 0.0 {
                 fresnel::conductor(w.dot(m), eta, k) * mf.g2(g2, w, o, m) / mf.g1(w, m)
             } else {
-                0.0
+                T::from(0.0)
             }
         })
-        .sum::<f64>()
+        .sum::<T>()
         / ENERGY_NORMALS as f64
 }
 
 /// The average over cell j of a directional energy e(w) (w on the +z side, azimuth 0).
-fn cell_energy(cells: &Cells, j: usize, e: impl Fn(DVec3) -> f64) -> f64 {
-    cells.points(j).iter().map(|&(u, v)| v * e(direction(u, (1.0, 0.0), 1.0))).sum::<f64>() / cells.w[j]
+fn cell_energy<T: Real>(cells: &Cells, j: usize, e: impl Fn(DVec3) -> T) -> T {
+    cells.points(j).iter().map(|&(u, v)| e(direction(u, (1.0, 0.0), 1.0)) * v).sum::<T>() / cells.w[j]
 }
 
 /// Refraction through a smooth interface from a medium into one of relative IOR `r` (n_to / n_from): each incident
 /// cell's u-range maps to u / r² (Snell), radiance scales by r², times 1 − F; what maps beyond u = 1 is totally
 /// reflected.
-fn smooth_refraction(cells: &Cells, r: f64) -> Mat {
+fn smooth_refraction<T: Real>(cells: &Cells, r: T) -> Mat<T> {
     let n = N_THETA;
     let mut m = zeros();
+    let (max, min) = (
+        |x: T, y: f64| if x.value() > y { x } else { T::from(y) },
+        |x: T, y: f64| {
+            if x.value() < y {
+                x
+            } else {
+                T::from(y)
+            }
+        },
+    );
     for j in 0..n {
-        let (a, b) = (cells.edges[j] / (r * r), (cells.edges[j + 1] / (r * r)).min(1.0));
+        let (a, b) = (T::from(cells.edges[j]) / (r * r), min(T::from(cells.edges[j + 1]) / (r * r), 1.0));
         for o in 0..n {
             let (c, d) = (cells.edges[o], cells.edges[o + 1]);
-            let (lo, hi) = (a.max(c), b.min(d));
-            if hi > lo {
-                let u_from = (0.5 * (lo + hi) * r * r).min(1.0);
-                let t = fresnel::dielectric_transmittance((1.0 - u_from).sqrt(), r);
+            let (lo, hi) = (max(a, c), min(b, d));
+            if hi.value() > lo.value() {
+                let u_from = min((lo + hi) * 0.5 * r * r, 1.0);
+                let t = fresnel::dielectric_transmittance((T::from(1.0) - u_from).sqrt(), r);
                 m[o * n + j] = t * r * r * (hi - lo) / (d - c);
             }
         }
@@ -326,11 +341,11 @@ fn smooth_refraction(cells: &Cells, r: f64) -> Mat {
 }
 
 /// A layer's four operators: reflection of light from above and from below, transmission downward and upward.
-struct Operators {
-    r_top: Op,
-    r_bottom: Op,
-    t_down: Op,
-    t_up: Op,
+struct Operators<T = f64> {
+    r_top: Op<T>,
+    r_bottom: Op<T>,
+    t_down: Op<T>,
+    t_up: Op<T>,
 }
 
 /// Which paths the operators carry: all of them, or only the Dirac part (the paths that meet smooth boundaries only
@@ -342,13 +357,14 @@ enum Paths {
 }
 
 /// Operators that carry nothing.
-fn none() -> Operators {
+fn none<T: Real>() -> Operators<T> {
     let z = every_order(zeros());
     Operators { r_top: z.clone(), r_bottom: z.clone(), t_down: z.clone(), t_up: z }
 }
 
-/// The operators of interface b of channel stack `s`, for `paths`.
-fn interface(cells: &Cells, s: &ChannelStack, b: usize, paths: Paths) -> Operators {
+/// The operators of interface b of channel stack `s`, for `paths`: a smooth one's in Duals by its IOR, a rough one's
+/// without derivatives.
+fn interface<T: Real>(cells: &Cells, s: &ChannelStack<T>, b: usize, paths: Paths) -> Operators<T> {
     let it = &s.interfaces[b];
     let eta = it.eta;
     if paths == Paths::Dirac && !s.is_delta(b) {
@@ -357,13 +373,16 @@ fn interface(cells: &Cells, s: &ChannelStack, b: usize, paths: Paths) -> Operato
     if s.is_delta(b) {
         // Each cell transmits exactly what it does not reflect (the cell's average Fresnel, total internal
         // reflection included), so that a lossless layer between two smooth boundaries conserves energy.
-        let side = |eta: f64| {
-            let r: Vec<f64> = (0..N_THETA).map(|j| cells.fresnel_average(j, eta).min(1.0)).collect();
+        let side = |eta: T| {
+            let r: Vec<T> = (0..N_THETA)
+                .map(|j| cells.fresnel_average(j, eta))
+                .map(|r| if r.value() > 1.0 { T::from(1.0) } else { r })
+                .collect();
             let mut t = every_order(smooth_refraction(cells, eta));
-            rescale_columns(cells, &mut t, |j| 1.0 - r[j]);
+            rescale_columns(cells, &mut t, |j| T::from(1.0) - r[j]);
             (every_order(diagonal(|j| r[j])), t)
         };
-        let ((r_top, t_down), (r_bottom, t_up)) = (side(eta), side(1.0 / eta));
+        let ((r_top, t_down), (r_bottom, t_up)) = (side(eta), side(T::from(1.0) / eta));
         return Operators { r_top, r_bottom, t_down, t_up };
     }
     let f = |w_light: DVec3, w_view: DVec3| s.boundary_f(b, w_light, w_view);
@@ -378,23 +397,23 @@ fn interface(cells: &Cells, s: &ChannelStack, b: usize, paths: Paths) -> Operato
         };
         (avg(|e| e.0), avg(|e| e.1))
     };
-    let from_above: Vec<(f64, f64)> = (0..N_THETA).into_par_iter().map(|j| energy(j, eta)).collect();
-    let from_below: Vec<(f64, f64)> = (0..N_THETA).into_par_iter().map(|j| energy(j, 1.0 / eta)).collect();
+    let from_above: Vec<(f64, f64)> = (0..N_THETA).into_par_iter().map(|j| energy(j, eta.value())).collect();
+    let from_below: Vec<(f64, f64)> = (0..N_THETA).into_par_iter().map(|j| energy(j, 1.0 / eta.value())).collect();
     let mut layer = Operators {
         r_top: project(cells, 1.0, 1.0, &f),
         r_bottom: project(cells, -1.0, -1.0, &f),
         t_down: project(cells, 1.0, -1.0, &f),
         t_up: project(cells, -1.0, 1.0, &f),
     };
-    rescale_columns(cells, &mut layer.r_top, |j| from_above[j].0);
-    rescale_columns(cells, &mut layer.t_down, |j| from_above[j].1);
-    rescale_columns(cells, &mut layer.r_bottom, |j| from_below[j].0);
-    rescale_columns(cells, &mut layer.t_up, |j| from_below[j].1);
+    rescale_columns(cells, &mut layer.r_top, |j| T::from(from_above[j].0));
+    rescale_columns(cells, &mut layer.t_down, |j| T::from(from_above[j].1));
+    rescale_columns(cells, &mut layer.r_bottom, |j| T::from(from_below[j].0));
+    rescale_columns(cells, &mut layer.t_up, |j| T::from(from_below[j].1));
     layer
 }
 
 /// The base's reflection operator (light from above), for `paths`.
-fn base(cells: &Cells, s: &ChannelStack, paths: Paths) -> Op {
+fn base<T: Real>(cells: &Cells, s: &ChannelStack<T>, paths: Paths) -> Op<T> {
     let b = s.interfaces.len();
     if paths == Paths::Dirac && !s.is_delta(b) {
         return every_order(zeros());
@@ -405,9 +424,10 @@ fn base(cells: &Cells, s: &ChannelStack, paths: Paths) -> Op {
         }
         Base::Conductor { mf, eta, k } => {
             let mut op = project(cells, 1.0, 1.0, &|wl, wv| s.boundary_f(b, wl, wv));
-            let energy: Vec<f64> = (0..N_THETA)
+            let normals = mf.values();
+            let energy: Vec<T> = (0..N_THETA)
                 .into_par_iter()
-                .map(|j| cell_energy(cells, j, |w| conductor_energy(mf, s.g2, *eta, *k, w)))
+                .map(|j| cell_energy(cells, j, |w| conductor_energy(&normals, s.g2, *eta, *k, w)))
                 .collect();
             rescale_columns(cells, &mut op, |j| energy[j]);
             op
@@ -418,13 +438,14 @@ fn base(cells: &Cells, s: &ChannelStack, paths: Paths) -> Op {
 
 /// The operators of slab i for `paths` (the Dirac part is its unscattered beam): None when it does nothing (no
 /// thickness or no extinction); Interrupted when asked to stop during its doublings.
-fn slab(cells: &Cells, s: &ChannelStack, i: usize, paths: Paths) -> Result<Option<Operators>> {
+fn slab<T: Real>(cells: &Cells, s: &ChannelStack<T>, i: usize, paths: Paths) -> Result<Option<Operators<T>>> {
     let sl = &s.slabs[i];
     let tau = (sl.sigma_a + sl.sigma_s) * sl.thickness;
-    if tau == 0.0 {
+    let zero = T::from(0.0);
+    if tau.same(zero) {
         return Ok(None);
     }
-    if sl.sigma_s == 0.0 || paths == Paths::Dirac {
+    if sl.sigma_s.same(zero) || paths == Paths::Dirac {
         let t = every_order(diagonal(|j| cells.average(j, |mu| (-tau / mu).exp())));
         let r = every_order(zeros());
         return Ok(Some(Operators { r_top: r.clone(), r_bottom: r, t_down: t.clone(), t_up: t }));
@@ -433,7 +454,7 @@ fn slab(cells: &Cells, s: &ChannelStack, i: usize, paths: Paths) -> Result<Optio
     // symmetric), each column's scattered energy made exactly Δτ ω ⟨1/μ_j⟩ (the discrete phase function integrates
     // to one), then doubled 2^k times up to τ.
     let omega = sl.sigma_s / (sl.sigma_a + sl.sigma_s);
-    let doublings = (tau / THIN).log2().ceil().max(0.0) as i32;
+    let doublings = (tau.value() / THIN).log2().ceil().max(0.0) as i32;
     let dtau = tau / 2f64.powi(doublings);
     let phase = |wl: DVec3, wv: DVec3| henyey_greenstein((-wl).dot(wv), sl.g) / (wl.z * wv.z).abs();
     let mut back = project(cells, 1.0, 1.0, &phase);
@@ -442,12 +463,12 @@ fn slab(cells: &Cells, s: &ChannelStack, i: usize, paths: Paths) -> Result<Optio
         let e = column_energy(cells, &back[0], j) + column_energy(cells, &forward[0], j);
         let k = dtau * omega * cells.average(j, |mu| 1.0 / mu) / e;
         for op in [&mut back, &mut forward] {
-            op.iter_mut().for_each(|m| (0..N_THETA).for_each(|o| m[o * N_THETA + j] *= k));
+            op.iter_mut().for_each(|m| (0..N_THETA).for_each(|o| m[o * N_THETA + j] = m[o * N_THETA + j] * k));
         }
     }
     let direct = diagonal(|j| cells.average(j, |mu| (-dtau / mu).exp()));
     let stopped = AtomicBool::new(false);
-    let (r, t): (Op, Op) = back
+    let (r, t): (Op<T>, Op<T>) = back
         .into_par_iter()
         .zip(forward)
         .map(|(mut r, f)| {
@@ -473,7 +494,7 @@ fn slab(cells: &Cells, s: &ChannelStack, i: usize, paths: Paths) -> Result<Optio
 
 /// Layer `a` over a stack of reflection `r` (order by order): a.R_top + a.T_up (I − R a.R_bottom)⁻¹ R a.T_down,
 /// without a.R_top when `with_top` is false.
-fn over(a: &Operators, r: Op, with_top: bool) -> Op {
+fn over<T: Real>(a: &Operators<T>, r: Op<T>, with_top: bool) -> Op<T> {
     r.into_par_iter()
         .enumerate()
         .map(|(m, r)| {
@@ -490,7 +511,7 @@ fn over(a: &Operators, r: Op, with_top: bool) -> Op {
 
 /// The reflection of channel stack `s` less its top boundary's own reflection (which the model evaluates exactly),
 /// order by order, for `paths`; Interrupted when asked to stop (interrupt.rs), checked layer by layer.
-fn reflection_below_top(cells: &Cells, s: &ChannelStack, paths: Paths) -> Result<Op> {
+fn reflection_below_top<T: Real>(cells: &Cells, s: &ChannelStack<T>, paths: Paths) -> Result<Op<T>> {
     let n = s.interfaces.len();
     if n == 0 {
         return Ok(every_order(zeros()));
@@ -519,15 +540,29 @@ fn node_cells(k: usize) -> Vec<(usize, f64)> {
 /// The table of `model="tabulated"`: f less the top boundary's reflection at the zenith nodes x = k / N_THETA (the
 /// cells' edges, k = 0 … N_THETA, both θi and θo) × N_PHI azimuths y = sin(φ/2) = p / (N_PHI − 1), φ ∈ [0, π] between
 /// the travel directions (φ = π − the azimuth between wi and wo), per channel: index (pair(i, o) · N_PHI + p) ·
-/// channels + c. A node's Fourier coefficients are those of the cells beside it, averaged; at θ = 0 only order 0
-/// remains (f does not depend on the azimuth there). Reciprocal (the average of (i, o) and (o, i), stored once);
-/// the ringing of the truncated series below zero is clipped. Without the Dirac part below a smooth top
-/// (`ChannelStack::dirac_reflectance`, which the model adds exactly). Interrupted when asked to stop (interrupt.rs).
+/// channels + c (`node_values`); the ringing of the truncated series below zero is clipped. Interrupted when asked to
+/// stop (interrupt.rs).
 pub fn tabulate(stack: &Stack, surface: Microsurface) -> Result<Vec<f32>> {
+    let channel = |c: usize| ChannelStack::new(stack, c, surface);
+    let values = node_values(stack.channels, channel, |c| channel_key(stack, c))?;
+    Ok(values.into_iter().map(|f| f.max(0.0) as f32).collect())
+}
+
+/// f less the top boundary's reflection at the table's nodes, unclipped, in f64 or in Duals (the table's derivatives
+/// by the parameters that `channel(c)`'s numbers carry): `tabulate`'s layout for `channels` channel stacks
+/// `channel(c)`, those of equal `key(c)` solved once. A node's Fourier coefficients are those of the cells beside it,
+/// averaged; at θ = 0 only order 0 remains (f does not depend on the azimuth there). Reciprocal (the average of
+/// (i, o) and (o, i), stored once). Without the Dirac part below a smooth top (`ChannelStack::dirac_reflectance`,
+/// which the model adds exactly).
+pub fn node_values<T: Real, K: PartialEq>(
+    channels: usize,
+    channel: impl Fn(usize) -> ChannelStack<T>,
+    key: impl Fn(usize) -> K,
+) -> Result<Vec<T>> {
     let cells = Cells::new();
-    let (n, ch) = (N_THETA, stack.channels);
-    let mut table = vec![0f32; PAIRS * N_PHI * ch];
-    let mut done: Vec<(Vec<f64>, usize)> = Vec::new();
+    let (n, ch) = (N_THETA, channels);
+    let mut table = vec![T::from(0.0); PAIRS * N_PHI * ch];
+    let mut done: Vec<(K, usize)> = Vec::new();
     let cosines: Vec<f64> = (0..N_PHI)
         .flat_map(|p| {
             let phi = 2.0 * (p as f64 / (N_PHI - 1) as f64).asin();
@@ -536,7 +571,7 @@ pub fn tabulate(stack: &Stack, surface: Microsurface) -> Result<Vec<f32>> {
         .collect();
     for c in 0..ch {
         // Channels with equal optical constants share one solution.
-        let key = channel_key(stack, c);
+        let key = key(c);
         if let Some(&(_, c0)) = done.iter().find(|(k, _)| *k == key) {
             for k in 0..PAIRS * N_PHI {
                 table[k * ch + c] = table[k * ch + c0];
@@ -544,29 +579,29 @@ pub fn tabulate(stack: &Stack, surface: Microsurface) -> Result<Vec<f32>> {
             continue;
         }
         done.push((key, c));
-        let s = ChannelStack::new(stack, c, surface);
+        let s = channel(c);
         let mut r = reflection_below_top(&cells, &s, Paths::All)?;
         if s.is_delta(0) {
             // Below a smooth top, smooth boundaries reflect Dirac lobes that cells would blur: the model adds them
             // exactly (`specular`), so the table keeps the rest.
             let dirac = reflection_below_top(&cells, &s, Paths::Dirac)?;
-            r.iter_mut().zip(&dirac).for_each(|(r, d)| r.iter_mut().zip(d).for_each(|(r, d)| *r -= d));
+            r.iter_mut().zip(&dirac).for_each(|(r, d)| r.iter_mut().zip(d).for_each(|(r, &d)| *r = *r - d));
         }
         // ā_m(o, j) = S_m[o][j] / (π (1 + δ_m0) w_j), symmetrized.
         let a = |m: usize, o: usize, j: usize| r[m][o * n + j] / (PI * if m == 0 { 2.0 } else { 1.0 } * cells.w[j]);
-        let coefficient = |m: usize, o: usize, j: usize| 0.5 * (a(m, o, j) + a(m, j, o));
+        let coefficient = |m: usize, o: usize, j: usize| (a(m, o, j) + a(m, j, o)) * 0.5;
         for o in 0..NODES {
             for i in 0..=o {
                 let orders = if i == 0 || o == 0 { 1 } else { ORDERS };
-                let mut am = [0.0; ORDERS];
+                let mut am = [T::from(0.0); ORDERS];
                 for (ci, wi) in node_cells(i) {
                     for (co, wo) in node_cells(o) {
-                        (0..orders).for_each(|m| am[m] += wi * wo * coefficient(m, co, ci));
+                        (0..orders).for_each(|m| am[m] = am[m] + coefficient(m, co, ci) * (wi * wo));
                     }
                 }
                 for p in 0..N_PHI {
-                    let f: f64 = am.iter().zip(&cosines[p * ORDERS..(p + 1) * ORDERS]).map(|(a, c)| a * c).sum();
-                    table[(pair(i, o) * N_PHI + p) * ch + c] = f.max(0.0) as f32;
+                    let f: T = am.iter().zip(&cosines[p * ORDERS..(p + 1) * ORDERS]).map(|(&a, &c)| a * c).sum();
+                    table[(pair(i, o) * N_PHI + p) * ch + c] = f;
                 }
             }
         }
@@ -575,7 +610,7 @@ pub fn tabulate(stack: &Stack, surface: Microsurface) -> Result<Vec<f32>> {
 }
 
 /// What channel c of `stack` is made of (two channels with equal keys have equal tables).
-fn channel_key(stack: &Stack, c: usize) -> Vec<f64> {
+pub fn channel_key(stack: &Stack, c: usize) -> Vec<f64> {
     use crate::stack::Layer;
     stack
         .layers
