@@ -2,7 +2,7 @@
 //! dielectric) and rough dielectric transmission (Walter et al. 2007), from either side. All return f without
 //! the cosine; directions point away from the surface (docs/conventions.md).
 
-use crate::dual::Real;
+use crate::dual::{dir, dot, normalize, value, Real};
 use crate::optics::distribution::{G2Form, Microfacet};
 use crate::optics::fresnel;
 use glam::DVec3;
@@ -28,28 +28,31 @@ pub fn rough_conductor<T: Real>(mf: &Microfacet<T>, form: G2Form, eta: T, k: T, 
 }
 
 /// Rough dielectric BSDF (Walter et al. 2007 eqs. 20–21) for radiance: reflection when wi and wo lie on the
-/// same side, transmission otherwise. `eta` = η_below / η_above; light arrives along wi and leaves along wo.
-pub fn rough_dielectric(mf: &Microfacet, form: G2Form, eta: f64, wi: DVec3, wo: DVec3) -> f64 {
+/// same side, transmission otherwise. `eta` = η_below / η_above; light arrives along wi and leaves along wo. The
+/// roughness and the IOR are f64 or Duals (the transmission's half vector moves with the IOR).
+pub fn rough_dielectric<T: Real>(mf: &Microfacet<T>, form: G2Form, eta: T, wi: DVec3, wo: DVec3) -> T {
+    let zero = T::from(0.0);
     if wi.z == 0.0 || wo.z == 0.0 || mf.is_smooth() {
-        return 0.0;
+        return zero;
     }
     if wi.z * wo.z > 0.0 {
-        return reflection_geometry(mf, form, wi, wo).map_or(0.0, |(geo, cos_h)| geo * fresnel::dielectric(cos_h, eta));
+        return reflection_geometry(mf, form, wi, wo)
+            .map_or(zero, |(geo, cos_h)| geo * fresnel::dielectric(cos_h, eta));
     }
-    let (eta_i, eta_o) = if wi.z > 0.0 { (1.0, eta) } else { (eta, 1.0) };
-    let h = -(eta_i * wi + eta_o * wo);
-    if h.length_squared() == 0.0 {
-        return 0.0;
+    let (eta_i, eta_o) = if wi.z > 0.0 { (T::from(1.0), eta) } else { (eta, T::from(1.0)) };
+    let h = [-(eta_i * wi.x + eta_o * wo.x), -(eta_i * wi.y + eta_o * wo.y), -(eta_i * wi.z + eta_o * wo.z)];
+    if dot(h, h).value() == 0.0 {
+        return zero;
     }
-    let h = h.normalize();
-    let h = if h.z < 0.0 { -h } else { h };
-    let (ih, oh) = (wi.dot(h), wo.dot(h));
-    let g = mf.g2(form, wi, wo, h);
-    if g == 0.0 {
-        return 0.0;
+    let h = normalize(h);
+    let h = if h[2].value() < 0.0 { h.map(|x| -x) } else { h };
+    let (ih, oh) = (dot(dir(wi), h), dot(dir(wo), h));
+    let g = mf.g2(form, wi, wo, value(h));
+    if g.value() == 0.0 {
+        return zero;
     }
     let denom = eta_i * ih + eta_o * oh;
-    let t = 1.0 - fresnel::dielectric(ih, eta);
+    let t = T::from(1.0) - fresnel::dielectric(ih, eta);
     (ih * oh).abs() / (wi.z * wo.z).abs() * eta_o * eta_o * t * mf.d(h) * g / (denom * denom)
 }
 

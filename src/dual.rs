@@ -3,6 +3,7 @@
 //! `Real` (f64, or a Dual), so that one function serves the evaluation and its parameter gradients; directions stay
 //! f64 (no parameter moves them). Branches read the value.
 
+use glam::DVec3;
 use std::ops::{Add, Div, Mul, Neg, Sub};
 
 /// A real number as the generic primitives compute with it: f64, or a Dual carrying derivatives.
@@ -90,6 +91,47 @@ impl Real for f64 {
     fn same(self, o: f64) -> bool {
         self == o
     }
+}
+
+/// A Real's arithmetic with a `C` on its right: an f64, or the same kind of Real. The primitives take a cosine or a
+/// direction that no parameter moves as f64, and one that a parameter moves (a half vector through the IOR, a sampled
+/// normal through the roughness) as Duals.
+pub trait With<C>:
+    Real + Add<C, Output = Self> + Sub<C, Output = Self> + Mul<C, Output = Self> + Div<C, Output = Self>
+{
+}
+
+impl<C, T> With<C> for T where
+    T: Real + Add<C, Output = T> + Sub<C, Output = T> + Mul<C, Output = T> + Div<C, Output = T>
+{
+}
+
+/// A direction's components as Reals.
+pub type Dir<T> = [T; 3];
+
+/// `w` as a Dir.
+#[inline(always)]
+pub fn dir<T: Real>(w: DVec3) -> Dir<T> {
+    [T::from(w.x), T::from(w.y), T::from(w.z)]
+}
+
+/// The value of a Dir, as glam's vector.
+#[inline(always)]
+pub fn value<C: Real>(w: Dir<C>) -> DVec3 {
+    DVec3::new(w[0].value(), w[1].value(), w[2].value())
+}
+
+/// a · b, summed as glam sums it.
+#[inline(always)]
+pub fn dot<T: Real>(a: Dir<T>, b: Dir<T>) -> T {
+    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+}
+
+/// a / |a|, as glam normalizes (times the reciprocal of the length).
+#[inline(always)]
+pub fn normalize<T: Real>(a: Dir<T>) -> Dir<T> {
+    let r = T::from(1.0) / dot(a, a).sqrt();
+    a.map(|x| x * r)
 }
 
 /// A value and its derivatives with respect to N parameters.

@@ -18,9 +18,9 @@ pub struct Microsurface {
     pub g2: G2Form,
 }
 
-/// One interface as a path sees it: roughness and the relative IOR η_below / η_above (f64, or a Dual).
+/// One interface as a path sees it: roughness and the relative IOR η_below / η_above (f64, or Duals).
 pub struct Interface<T = f64> {
-    pub mf: Microfacet,
+    pub mf: Microfacet<T>,
     pub eta: T,
 }
 
@@ -40,7 +40,7 @@ pub enum Base<T = f64> {
 
 /// The stack resolved for one channel: interface i is the top of slab i; the base lies below the last slab. Boundary
 /// b is interface b, or the base when b equals the number of interfaces. Its numbers are f64, or Duals carrying
-/// parameter derivatives (an interface's roughness stays f64).
+/// parameter derivatives.
 pub struct ChannelStack<T = f64> {
     pub interfaces: Vec<Interface<T>>,
     pub slabs: Vec<Slab<T>>,
@@ -56,7 +56,7 @@ impl ChannelStack {
 
 impl<T: Real> ChannelStack<T> {
     /// Channel `channel` of `stack` with each number v of layer i's field taken as `value(i, field, v)`: f64, or a
-    /// Dual seeded by a gradient's parameters (models::seeded); an interface's roughness is f64.
+    /// Dual seeded by a gradient's parameters (models::seeded).
     pub fn with_values(
         stack: &Stack,
         channel: usize,
@@ -66,10 +66,14 @@ impl<T: Real> ChannelStack<T> {
         let (mut interfaces, mut slabs) = (Vec::new(), Vec::new());
         let g2 = surface.g2;
         for (i, (layer, rel)) in stack.layers.iter().zip(stack.interfaces()).enumerate() {
-            let mf = layer.microfacet(surface.distribution);
+            let microfacet = |alpha: &(f64, f64), angle: f64| {
+                let (ax, ay) = (value(i, Field::RoughnessX, alpha.0), value(i, Field::RoughnessY, alpha.1));
+                Microfacet::<T>::with_parameters(surface.distribution, ax, ay, value(i, Field::Angle, angle))
+            };
             match layer {
-                Layer::Dielectric { thickness, sigma_a, sigma_s, g, .. } => {
-                    interfaces.push(Interface { mf: mf.unwrap(), eta: value(i, Field::Ior, rel.eta[channel]) });
+                Layer::Dielectric { alpha, angle, thickness, sigma_a, sigma_s, g, .. } => {
+                    let mf = microfacet(alpha, *angle);
+                    interfaces.push(Interface { mf, eta: value(i, Field::Ior, rel.eta[channel]) });
                     slabs.push(Slab {
                         thickness: value(i, Field::Thickness, *thickness),
                         sigma_a: value(i, Field::SigmaA, sigma_a[channel]),
@@ -78,9 +82,7 @@ impl<T: Real> ChannelStack<T> {
                     });
                 }
                 Layer::Conductor { alpha, angle, .. } => {
-                    let (ax, ay) = (value(i, Field::RoughnessX, alpha.0), value(i, Field::RoughnessY, alpha.1));
-                    let mf =
-                        Microfacet::<T>::with_parameters(surface.distribution, ax, ay, value(i, Field::Angle, *angle));
+                    let mf = microfacet(alpha, *angle);
                     let (eta, k) = (value(i, Field::Ior, rel.eta[channel]), value(i, Field::K, rel.kappa[channel]));
                     return ChannelStack { interfaces, slabs, base: Base::Conductor { mf, eta, k }, g2 };
                 }
@@ -95,11 +97,10 @@ impl<T: Real> ChannelStack<T> {
     }
 
     /// BSDF value f(w_light, w_view) of boundary `b`: light arrives along w_light and leaves along w_view, both
-    /// pointing away from the boundary (Walter et al. 2007 for rough interfaces, Oren–Nayar 1994 for the base). A
-    /// rough interface's f carries no derivatives.
+    /// pointing away from the boundary (Walter et al. 2007 for rough interfaces, Oren–Nayar 1994 for the base).
     pub fn boundary_f(&self, b: usize, w_light: DVec3, w_view: DVec3) -> T {
         if let Some(it) = self.interfaces.get(b) {
-            return T::from(crate::bsdf::rough_dielectric(&it.mf, self.g2, it.eta.value(), w_light, w_view));
+            return crate::bsdf::rough_dielectric(&it.mf, self.g2, it.eta, w_light, w_view);
         }
         match &self.base {
             Base::Conductor { mf, eta, k } => crate::bsdf::rough_conductor(mf, self.g2, *eta, *k, w_light, w_view),

@@ -10,9 +10,9 @@
 //! | `g2`           | string | `height_correlated` | masking-shadowing, as the reference's                          |
 //!
 //! Gradients (`Stack.eval_grad`): the adding-doubling solved again in Duals (tables/adding_doubling.rs is generic
-//! over `Real`: every operator, product and solve carries the derivatives), exact for a coat's thickness, σa, σs and
-//! g, a smooth coat's IOR, the conductor base's η and κ and the diffuse base's albedo and σ; a rough interface's IOR
-//! and roughness, which move its lobes' sample normals and half vectors, are refused.
+//! over `Real`: every projection, energy, product and solve carries the derivatives), exact for a coat's thickness,
+//! σa, σs and g, a smooth coat's IOR, the conductor base's η, κ and roughness and the diffuse base's albedo and σ. A
+//! rough coat's IOR and roughness are refused (`refused` says why).
 //!
 //! Isotropic stacks only: anisotropic roughness raises a ValueError. A table holds (N_THETA + 1)² N_PHI f32 per
 //! channel, each reciprocal pair once (0.81 MiB for RGB). Sampling: the top's visible normals and the inner rough
@@ -30,7 +30,7 @@ use crate::dual::Dual;
 use crate::engine::{self, Floats, Rows, LANES, V3};
 use crate::error::{value_error, Result};
 use crate::models::FitLanes;
-use crate::optics::distribution::{G2Form, Microfacet};
+use crate::optics::distribution::{Distribution, G2Form, Microfacet};
 use crate::optics::fresnel::{self, FresnelForm};
 use crate::optics::lanes::{self, Ggx};
 use crate::stack::{Layer, Stack};
@@ -47,7 +47,7 @@ pub const INFO: ModelInfo = ModelInfo {
     options: &[DISTRIBUTION, G2] as &[OptionSpec],
     inputs: &[] as &[InputSpec],
     properties: Properties { reciprocal: true, energy_conserving: true, anisotropic: false, spectral: true },
-    gradients: &["ior", "k", "albedo", "diffuse_roughness", "thickness", "sigma_a", "sigma_s", "g"],
+    gradients: &Field::NAMES,
     prepare: |stack, args| prepare(stack, microsurface(args)?),
     #[cfg(feature = "gpu")]
     gpu: Some(&gpu::HALF),
@@ -384,33 +384,46 @@ impl Model for Prepared {
     }
 }
 
-/// Whether the table's solve differentiates `field` of `layer`: a coat's coefficients and a smooth coat's IOR, and the
-/// base's numbers (a diffuse base sees no IOR: its derivative is 0); a rough interface's IOR and roughness move its
-/// lobes' sample normals and half vectors, which the solve does not differentiate.
-fn differentiable(layer: &Layer, field: Field) -> bool {
-    match layer {
-        Layer::Dielectric { alpha, .. } => {
-            matches!(field, Field::Thickness | Field::SigmaA | Field::SigmaS | Field::G)
-                || (field == Field::Ior && *alpha == (0.0, 0.0))
-        }
-        Layer::Conductor { .. } => matches!(field, Field::Ior | Field::K),
-        Layer::Diffuse { .. } => matches!(field, Field::Albedo | Field::DiffuseRoughness | Field::Ior),
+/// Why the table's solve does not differentiate by these seeds, if it does not: a rough dielectric interface's IOR
+/// or roughness (seen from below, its Fresnel term's cusp at total internal reflection makes the energy that its
+/// columns are normalized to jagged on scales of 1e-6: tables/adding_doubling.rs `interface_energy`); a roughness on
+/// one axis (an anisotropic perturbation of an isotropic table); a conductor's roughness under Beckmann (whose
+/// visible normals are found by Newton's method) or the V-cavity masking (which `Microfacet::g2` does not
+/// differentiate by moving directions).
+fn refused(stack: &Stack, surface: Microsurface, seeds: &[Seed]) -> Option<String> {
+    let axis = |f: Field| matches!(f, Field::RoughnessX | Field::RoughnessY);
+    for s in seeds {
+        let name = Field::NAMES[Field::ALL.iter().position(|f| *f == s.field).unwrap_or(0)];
+        let why = match (&stack.layers[s.layer], surface.distribution, surface.g2) {
+            (Layer::Dielectric { alpha, .. }, _, _)
+                if *alpha != (0.0, 0.0) && (axis(s.field) || s.field == Field::Ior) =>
+            {
+                "a rough coat's (belcour differentiates it)"
+            }
+            (Layer::Conductor { .. }, Distribution::Beckmann, _) if axis(s.field) => {
+                "a conductor's, with distribution='beckmann'"
+            }
+            (Layer::Conductor { .. }, _, G2Form::VCavity) if axis(s.field) => "a conductor's, with g2='v_cavity'",
+            _ if axis(s.field) => {
+                let other = if s.field == Field::RoughnessX { Field::RoughnessY } else { Field::RoughnessX };
+                if seeds.contains(&Seed { field: other, ..*s }) {
+                    continue;
+                }
+                "on one axis (an isotropic table)"
+            }
+            _ => continue,
+        };
+        return Some(format!("{name} of layer {} ({}): {why}", s.layer, stack.layers[s.layer].name()));
     }
+    None
 }
 
 /// f and its gradient (`Model::gradient`): the table solved again in Duals (forward-mode adding-doubling: every
-/// operator, product and solve carries the derivatives), f64 throughout, interpolated as `eval` interpolates the
-/// table; the top's reflection depends on no differentiable field.
+/// projection, energy, product and solve carries the derivatives), f64 throughout, interpolated as `eval`
+/// interpolates the table, plus the top's reflection in Duals.
 fn gradient<'a, const N: usize>(p: &'a Prepared, seeds: &[Seed]) -> Result<Gradient<'a>> {
-    if let Some(s) = seeds.iter().find(|s| !differentiable(&p.stack.layers[s.layer], s.field)) {
-        return value_error(format!(
-            "model 'tabulated' differentiates a coat's thickness, sigma_a, sigma_s and g, a smooth coat's ior, a \
-             conductor base's ior and k and a diffuse base's albedo and diffuse_roughness, not {} of layer {} ({}); \
-             'belcour' differentiates rough interfaces",
-            Field::NAMES[Field::ALL.iter().position(|f| *f == s.field).unwrap_or(0)],
-            s.layer,
-            p.stack.layers[s.layer].name()
-        ));
+    if let Some(why) = refused(&p.stack, p.surface, seeds) {
+        return value_error(format!("model 'tabulated' has no gradient by {why}"));
     }
     let stack = &p.stack;
     let channel = |c: usize| {
@@ -423,12 +436,15 @@ fn gradient<'a, const N: usize>(p: &'a Prepared, seeds: &[Seed]) -> Result<Gradi
     };
     let clip = |f: Dual<N>| if f.v > 0.0 { f } else { Dual::from(0.0) };
     let table: Vec<Dual<N>> = node_values(stack.channels, channel, key)?.into_iter().map(clip).collect();
+    let tops: Vec<_> = (0..stack.channels).map(|c| channel(c).interfaces.swap_remove(0)).collect();
     Ok(Box::new(move |wi, wo, out| {
         let ch = p.eta.len();
         let mut f = vec![Dual::<N>::from(0.0); ch];
         if wi.z > 0.0 && wo.z > 0.0 {
-            if let Some(mf) = &p.top {
-                f.iter_mut().zip(&p.eta).for_each(|(f, &eta)| *f = rough_dielectric(mf, p.g2, eta, wi, wo).into());
+            if p.top.is_some() {
+                for (f, top) in f.iter_mut().zip(&tops) {
+                    *f = rough_dielectric(&top.mf, p.g2, top.eta, wi, wo);
+                }
             }
             let [(i, fi), (o, fo), (k, fp)] = coordinates(wi, wo);
             for (di, wi_) in [(0, 1.0 - fi), (1, fi)] {

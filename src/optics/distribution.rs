@@ -3,7 +3,7 @@
 //! distribution carries the rotation `angle` of its tangent frame, along whose x axis `alpha_x` applies.
 
 use super::to_tangent_frame;
-use crate::dual::Real;
+use crate::dual::{normalize, value, Dir, Real, With};
 use glam::DVec3;
 use std::f64::consts::PI;
 
@@ -62,18 +62,6 @@ impl<T: Real> Microfacet<T> {
         }
     }
 
-    /// The distribution's numbers without their derivatives.
-    pub fn values(&self) -> Microfacet {
-        Microfacet {
-            dist: self.dist,
-            alpha_x: self.alpha_x.value(),
-            alpha_y: self.alpha_y.value(),
-            smooth: self.smooth,
-            cos_phi: self.cos_phi.value(),
-            sin_phi: self.sin_phi.value(),
-        }
-    }
-
     /// True when both roughnesses are zero: the interface is a perfectly smooth (Dirac) one, whose reflection and
     /// refraction are delta lobes that a BSDF evaluation does not return.
     pub fn is_smooth(&self) -> bool {
@@ -82,16 +70,23 @@ impl<T: Real> Microfacet<T> {
 
     /// w in the tangent frame: (x, y) along αx and αy, and z.
     #[inline(always)]
-    fn tangent_t(&self, w: DVec3) -> (T, T, f64) {
-        (self.cos_phi * w.x + self.sin_phi * w.y, self.cos_phi * w.y - self.sin_phi * w.x, w.z)
+    fn tangent_t<C: Real>(&self, w: Dir<C>) -> (T, T, C)
+    where
+        T: With<C>,
+    {
+        (self.cos_phi * w[0] + self.sin_phi * w[1], self.cos_phi * w[1] - self.sin_phi * w[0], w[2])
     }
 
     /// Normal distribution D(m) (Walter et al. 2007 eq. 33 for GGX, eq. 25 for Beckmann; anisotropic form of
-    /// Heitz 2014 eq. 85/86). Zero for m below the horizon. (This and the masking functions below compute first and
-    /// select last, without early returns, so that loops over them vectorize.)
+    /// Heitz 2014 eq. 85/86). Zero for m below the horizon. m is f64 (a DVec3), or Duals where a parameter moves it.
+    /// (This and the masking functions below compute first and select last, without early returns, so that loops
+    /// over them vectorize.)
     #[inline(always)]
-    pub fn d(&self, m: DVec3) -> T {
-        let (mx, my, mz) = self.tangent_t(m);
+    pub fn d<C: Real>(&self, m: impl Into<Dir<C>>) -> T
+    where
+        T: With<C>,
+    {
+        let (mx, my, mz) = self.tangent_t(m.into());
         let (x, y) = (mx / self.alpha_x, my / self.alpha_y);
         let z2 = mz * mz;
         let d = match self.dist {
@@ -103,7 +98,7 @@ impl<T: Real> Microfacet<T> {
                 (-(x * x + y * y) / z2).exp() / (T::from(PI) * self.alpha_x * self.alpha_y * z2 * z2)
             }
         };
-        if mz > 0.0 {
+        if mz.value() > 0.0 {
             d
         } else {
             T::from(0.0)
@@ -113,8 +108,11 @@ impl<T: Real> Microfacet<T> {
     /// Smith Λ(w) of the distribution (Heitz 2014 eq. 72 for GGX, eq. 69 for Beckmann), using the projected
     /// roughness α(φ) along the azimuth of w. Both forms give 0 for α tan θ = 0 and ∞ for α tan θ = ∞ (grazing).
     #[inline(always)]
-    pub fn lambda(&self, w: DVec3) -> T {
-        let (wx, wy, wz) = self.tangent_t(w);
+    pub fn lambda<C: Real>(&self, w: impl Into<Dir<C>>) -> T
+    where
+        T: With<C>,
+    {
+        let (wx, wy, wz) = self.tangent_t(w.into());
         let (ax, ay) = (wx * self.alpha_x, wy * self.alpha_y);
         let alpha_tan2 = (ax * ax + ay * ay) / (wz * wz);
         match self.dist {
@@ -126,10 +124,15 @@ impl<T: Real> Microfacet<T> {
         }
     }
 
-    /// Smith masking G1(w, m) = χ⁺((w·m)/(w·n)) / (1 + Λ(w)) (Heitz 2014 eq. 43).
+    /// Smith masking G1(w, m) = χ⁺((w·m)/(w·n)) / (1 + Λ(w)) (Heitz 2014 eq. 43); m enters only through χ⁺.
     #[inline(always)]
-    pub fn g1(&self, w: DVec3, m: DVec3) -> T {
+    pub fn g1<C: Real>(&self, w: impl Into<Dir<C>>, m: DVec3) -> T
+    where
+        T: With<C>,
+    {
+        let w = w.into();
         let g = T::from(1.0) / (self.lambda(w) + 1.0);
+        let w = value(w);
         if w.dot(m) * w.z > 0.0 {
             g
         } else {
@@ -139,14 +142,22 @@ impl<T: Real> Microfacet<T> {
 
     /// Separable Smith masking-shadowing G1(wi) G1(wo) (Heitz 2014 eq. 98; what Mitsuba 3 uses).
     #[inline(always)]
-    pub fn g2_separable(&self, wi: DVec3, wo: DVec3, m: DVec3) -> T {
+    pub fn g2_separable<A: Real, B: Real>(&self, wi: impl Into<Dir<A>>, wo: impl Into<Dir<B>>, m: DVec3) -> T
+    where
+        T: With<A> + With<B>,
+    {
         self.g1(wi, m) * self.g1(wo, m)
     }
 
     /// Height-correlated Smith masking-shadowing 1 / (1 + Λ(wi) + Λ(wo)) (Heitz 2014 eq. 99; pbrt-v4).
     #[inline(always)]
-    pub fn g2_height_correlated(&self, wi: DVec3, wo: DVec3, m: DVec3) -> T {
+    pub fn g2_height_correlated<A: Real, B: Real>(&self, wi: impl Into<Dir<A>>, wo: impl Into<Dir<B>>, m: DVec3) -> T
+    where
+        T: With<A> + With<B>,
+    {
+        let (wi, wo) = (wi.into(), wo.into());
         let g = T::from(1.0) / (T::from(1.0) + self.lambda(wi) + self.lambda(wo));
+        let (wi, wo) = (value(wi), value(wo));
         if wi.dot(m) * wi.z > 0.0 && wo.dot(m) * wo.z > 0.0 {
             g
         } else {
@@ -154,13 +165,16 @@ impl<T: Real> Microfacet<T> {
         }
     }
 
-    /// Masking-shadowing of the chosen form.
+    /// Masking-shadowing of the chosen form; the V-cavity's carries no derivative by directions that parameters move.
     #[inline(always)]
-    pub fn g2(&self, form: G2Form, wi: DVec3, wo: DVec3, m: DVec3) -> T {
+    pub fn g2<A: Real, B: Real>(&self, form: G2Form, wi: impl Into<Dir<A>>, wo: impl Into<Dir<B>>, m: DVec3) -> T
+    where
+        T: With<A> + With<B>,
+    {
         match form {
             G2Form::Separable => self.g2_separable(wi, wo, m),
             G2Form::HeightCorrelated => self.g2_height_correlated(wi, wo, m),
-            G2Form::VCavity => T::from(v_cavity(wi, wo, m)),
+            G2Form::VCavity => T::from(v_cavity(value(wi.into()), value(wo.into()), m)),
         }
     }
 }
@@ -194,10 +208,6 @@ impl Microfacet {
         to_tangent_frame(w, self.cos_phi, self.sin_phi)
     }
 
-    fn untangent(&self, w: DVec3) -> DVec3 {
-        to_tangent_frame(w, self.cos_phi, -self.sin_phi)
-    }
-
     /// Projected roughness α(φ) = √(αx² cos²φ + αy² sin²φ) along the azimuth φ of `w` in the tangent frame (Heitz
     /// 2014 eq. 80); αx for a direction along the normal.
     pub fn projected_alpha(&self, w: DVec3) -> f64 {
@@ -222,27 +232,45 @@ impl Microfacet {
     /// distribution of visible normals" (JCGT 7(4)), listing 1. Beckmann: Heitz & d'Eon 2014 §4 (stretch,
     /// sample the slope distribution of the standard Beckmann configuration, unstretch).
     pub fn sample_visible(&self, wi: DVec3, u1: f64, u2: f64) -> DVec3 {
-        let v = self.tangent(wi);
-        let vh = DVec3::new(self.alpha_x * v.x, self.alpha_y * v.y, v.z).normalize();
+        value(self.visible_normal(wi, u1, u2))
+    }
+}
+
+impl<T: Real> Microfacet<T> {
+    /// `sample_visible` in f64, or in Duals by the roughnesses and the frame angle: the normal that the same uniform
+    /// numbers give, as the parameters move it (for GGX; Beckmann's slopes, found by Newton's method, carry none).
+    pub fn visible_normal(&self, wi: DVec3, u1: f64, u2: f64) -> Dir<T> {
+        let (vx, vy, vz) = self.tangent_t([wi.x, wi.y, wi.z]);
+        let vh = normalize([self.alpha_x * vx, self.alpha_y * vy, T::from(vz)]);
         let m = match self.dist {
             Distribution::Ggx => {
-                let len2 = vh.x * vh.x + vh.y * vh.y;
-                let t1 = if len2 > 0.0 { DVec3::new(-vh.y, vh.x, 0.0) / len2.sqrt() } else { DVec3::X };
-                let t2 = vh.cross(t1);
+                let len2 = vh[0] * vh[0] + vh[1] * vh[1];
+                let (zero, one) = (T::from(0.0), T::from(1.0));
+                let t1 = if len2.value() > 0.0 {
+                    let len = len2.sqrt();
+                    [-vh[1] / len, vh[0] / len, zero / len]
+                } else {
+                    [one, zero, zero]
+                };
+                // vh × t1, as glam crosses.
+                let t2 = [vh[1] * t1[2] - t1[1] * vh[2], vh[2] * t1[0] - t1[2] * vh[0], vh[0] * t1[1] - t1[0] * vh[1]];
                 let r = u1.sqrt();
                 let phi = 2.0 * PI * u2;
                 let p1 = r * phi.cos();
-                let s = 0.5 * (1.0 + vh.z);
-                let p2 = (1.0 - s) * (1.0 - p1 * p1).max(0.0).sqrt() + s * r * phi.sin();
-                let nh = p1 * t1 + p2 * t2 + (1.0 - p1 * p1 - p2 * p2).max(0.0).sqrt() * vh;
-                DVec3::new(self.alpha_x * nh.x, self.alpha_y * nh.y, nh.z.max(0.0))
+                let s = (vh[2] + 1.0) * 0.5;
+                let p2 = (one - s) * (1.0 - p1 * p1).max(0.0).sqrt() + s * r * phi.sin();
+                let p3 = (T::from(1.0 - p1 * p1) - p2 * p2).max_c(0.0).sqrt();
+                let nh: Dir<T> = std::array::from_fn(|i| t1[i] * p1 + t2[i] * p2 + vh[i] * p3);
+                [self.alpha_x * nh[0], self.alpha_y * nh[1], nh[2].max_c(0.0)]
             }
             Distribution::Beckmann => {
-                let (sx, sy) = beckmann_sample_slopes(vh, u1, u2);
-                DVec3::new(-sx * self.alpha_x, -sy * self.alpha_y, 1.0)
+                let (sx, sy) = beckmann_sample_slopes(value(vh), u1, u2);
+                [self.alpha_x * -sx, self.alpha_y * -sy, T::from(1.0)]
             }
         };
-        self.untangent(m.normalize())
+        // Back from the tangent frame (the rotation by −angle).
+        let [x, y, z] = normalize(m);
+        [self.cos_phi * x - self.sin_phi * y, self.sin_phi * x + self.cos_phi * y, z]
     }
 }
 

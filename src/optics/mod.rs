@@ -7,6 +7,7 @@ pub mod fresnel;
 pub mod jacobian;
 pub mod lanes;
 
+use crate::dual::{dir, dot, value, Dir, Real};
 use glam::DVec3;
 
 /// cos θ of a unit direction in the local frame.
@@ -25,20 +26,34 @@ pub fn sin_theta(w: DVec3) -> f64 {
 /// Mirror reflection of `w` about the normal `n` (both unit, pointing away from the surface).
 #[inline]
 pub fn reflect(w: DVec3, n: DVec3) -> DVec3 {
-    2.0 * w.dot(n) * n - w
+    value(reflect_about(w, dir::<f64>(n)))
+}
+
+/// `reflect` about a normal in Reals (one that a parameter moves).
+#[inline(always)]
+pub fn reflect_about<T: Real>(w: DVec3, n: Dir<T>) -> Dir<T> {
+    let d = dot(dir(w), n) * 2.0;
+    [d * n[0] - w.x, d * n[1] - w.y, d * n[2] - w.z]
 }
 
 /// Refraction of `w` through a surface with normal `n` and relative IOR `eta` = η_transmitted / η_incident
 /// (Snell's law); `None` under total internal reflection. `w` and `n` lie on the same side.
 #[inline]
 pub fn refract(w: DVec3, n: DVec3, eta: f64) -> Option<DVec3> {
-    let cos_i = w.dot(n);
-    let sin2_t = (1.0 - cos_i * cos_i).max(0.0) / (eta * eta);
-    if sin2_t >= 1.0 {
+    refract_about(w, dir::<f64>(n), eta).map(value)
+}
+
+/// `refract` through a normal and an IOR in Reals (that parameters move).
+#[inline(always)]
+pub fn refract_about<T: Real>(w: DVec3, n: Dir<T>, eta: T) -> Option<Dir<T>> {
+    let cos_i = dot(dir(w), n);
+    let sin2_t = (T::from(1.0) - cos_i * cos_i).max_c(0.0) / (eta * eta);
+    if sin2_t.value() >= 1.0 {
         return None;
     }
-    let cos_t = (1.0 - sin2_t).sqrt();
-    Some(-w / eta + (cos_i / eta - cos_t) * n)
+    let cos_t = (T::from(1.0) - sin2_t).sqrt();
+    let k = cos_i / eta - cos_t;
+    Some([T::from(-w.x) / eta + k * n[0], T::from(-w.y) / eta + k * n[1], T::from(-w.z) / eta + k * n[2]])
 }
 
 /// Rotates a local direction about the normal by -`angle` given (cos angle, sin angle): world tangent frame to

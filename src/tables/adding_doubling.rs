@@ -17,9 +17,10 @@
 //! adding equations, order by order.
 
 use crate::dual::Real;
+use crate::dual::{dir, dot, value};
 use crate::error::Result;
 use crate::optics::distribution::{G2Form, Microfacet};
-use crate::optics::{fresnel, reflect, refract};
+use crate::optics::{fresnel, reflect_about, refract_about};
 use crate::quadrature::gauss_legendre;
 use crate::sampling::henyey_greenstein;
 use crate::stack::Stack;
@@ -271,31 +272,37 @@ fn rescale_columns<T: Real>(cells: &Cells, op: &mut Op<T>, target: impl Fn(usize
 
 /// What a rough interface (relative IOR `eta` below / above) seen from direction `w` (its side up, w.z > 0)
 /// reflects and transmits: E over visible normals of F G2/G1 and (1 − F) G2/G1 (the weights of the reference's
-/// sampling, reference.rs `scatter_interface`), on a lattice of ENERGY_NORMALS normals.
-fn interface_energy(mf: &Microfacet, g2: G2Form, eta: f64, w: DVec3) -> (f64, f64) {
-    let (mut r, mut t) = (0.0, 0.0);
-    for m in super::visible_normals(mf, w, ENERGY_NORMALS) {
-        let f = fresnel::dielectric(w.dot(m), eta);
-        let o = reflect(w, m);
-        if o.z > 0.0 {
-            r += f * mf.g2(g2, w, o, m) / mf.g1(w, m);
+/// sampling, reference.rs `scatter_interface`), on a lattice of ENERGY_NORMALS normals (tables::lattice), in f64 or
+/// in Duals by the roughness and the IOR (the normals move with the roughness, the directions they scatter to with
+/// both). Seen from below (η < 1), F has a square-root cusp at the critical angle, which the lattice's normals cross as
+/// the roughness or the IOR moves: there the estimate is jagged on scales of 1e-6 (models/tabulated.rs refuses
+/// those gradients).
+fn interface_energy<T: Real>(mf: &Microfacet<T>, g2: G2Form, eta: T, w: DVec3) -> (T, T) {
+    let (mut r, mut t) = (T::from(0.0), T::from(0.0));
+    for (u1, u2) in super::lattice(ENERGY_NORMALS) {
+        let m = mf.visible_normal(w, u1, u2);
+        let f = fresnel::dielectric(dot(dir(w), m), eta);
+        let (o, normal) = (reflect_about(w, m), value(m));
+        if o[2].value() > 0.0 {
+            r = r + f * mf.g2(g2, w, o, normal) / mf.g1(w, normal);
         }
-        if let Some(o) = refract(w, m, eta).filter(|o| o.z < 0.0) {
-            t += (1.0 - f) * mf.g2(g2, w, o, m) / mf.g1(w, m);
+        if let Some(o) = refract_about(w, m, eta).filter(|o| o[2].value() < 0.0) {
+            t = t + (T::from(1.0) - f) * mf.g2(g2, w, o, normal) / mf.g1(w, normal);
         }
     }
     (r / ENERGY_NORMALS as f64, t / ENERGY_NORMALS as f64)
 }
 
-/// What a rough conductor seen from `w` reflects: E over visible normals of F G2/G1 (in Duals by η and κ only:
-/// the normals are those of `mf`'s values).
-fn conductor_energy<T: Real>(mf: &Microfacet, g2: G2Form, eta: T, k: T, w: DVec3) -> T {
-    super::visible_normals(mf, w, ENERGY_NORMALS)
-        .iter()
-        .map(|&m| {
-            let o = reflect(w, m);
-            if o.z > 0.0 {
-                fresnel::conductor(w.dot(m), eta, k) * mf.g2(g2, w, o, m) / mf.g1(w, m)
+/// What a rough conductor seen from `w` reflects: E over visible normals of F G2/G1, in f64 or in Duals by the
+/// roughness, η and κ.
+fn conductor_energy<T: Real>(mf: &Microfacet<T>, g2: G2Form, eta: T, k: T, w: DVec3) -> T {
+    super::lattice(ENERGY_NORMALS)
+        .map(|(u1, u2)| {
+            let m = mf.visible_normal(w, u1, u2);
+            let o = reflect_about(w, m);
+            if o[2].value() > 0.0 {
+                let normal = value(m);
+                fresnel::conductor(dot(dir(w), m), eta, k) * mf.g2(g2, w, o, normal) / mf.g1(w, normal)
             } else {
                 T::from(0.0)
             }
@@ -386,29 +393,28 @@ fn interface<T: Real>(cells: &Cells, s: &ChannelStack<T>, b: usize, paths: Paths
         return Operators { r_top, r_bottom, t_down, t_up };
     }
     let f = |w_light: DVec3, w_view: DVec3| s.boundary_f(b, w_light, w_view);
-    let energy = |j: usize, eta: f64| {
-        let rt: Vec<(f64, f64)> = cells
+    let energy = |j: usize, eta: T| {
+        let rt: Vec<(T, T)> = cells
             .points(j)
             .iter()
             .map(|&(u, _)| interface_energy(&it.mf, s.g2, eta, direction(u, (1.0, 0.0), 1.0)))
             .collect();
-        let avg = |k: fn(&(f64, f64)) -> f64| {
-            cells.points(j).iter().zip(&rt).map(|(&(_, v), e)| v * k(e)).sum::<f64>() / cells.w[j]
-        };
+        let avg =
+            |k: fn(&(T, T)) -> T| cells.points(j).iter().zip(&rt).map(|(&(_, v), e)| k(e) * v).sum::<T>() / cells.w[j];
         (avg(|e| e.0), avg(|e| e.1))
     };
-    let from_above: Vec<(f64, f64)> = (0..N_THETA).into_par_iter().map(|j| energy(j, eta.value())).collect();
-    let from_below: Vec<(f64, f64)> = (0..N_THETA).into_par_iter().map(|j| energy(j, 1.0 / eta.value())).collect();
+    let from_above: Vec<(T, T)> = (0..N_THETA).into_par_iter().map(|j| energy(j, eta)).collect();
+    let from_below: Vec<(T, T)> = (0..N_THETA).into_par_iter().map(|j| energy(j, T::from(1.0) / eta)).collect();
     let mut layer = Operators {
         r_top: project(cells, 1.0, 1.0, &f),
         r_bottom: project(cells, -1.0, -1.0, &f),
         t_down: project(cells, 1.0, -1.0, &f),
         t_up: project(cells, -1.0, 1.0, &f),
     };
-    rescale_columns(cells, &mut layer.r_top, |j| T::from(from_above[j].0));
-    rescale_columns(cells, &mut layer.t_down, |j| T::from(from_above[j].1));
-    rescale_columns(cells, &mut layer.r_bottom, |j| T::from(from_below[j].0));
-    rescale_columns(cells, &mut layer.t_up, |j| T::from(from_below[j].1));
+    rescale_columns(cells, &mut layer.r_top, |j| from_above[j].0);
+    rescale_columns(cells, &mut layer.t_down, |j| from_above[j].1);
+    rescale_columns(cells, &mut layer.r_bottom, |j| from_below[j].0);
+    rescale_columns(cells, &mut layer.t_up, |j| from_below[j].1);
     layer
 }
 
@@ -424,10 +430,9 @@ fn base<T: Real>(cells: &Cells, s: &ChannelStack<T>, paths: Paths) -> Op<T> {
         }
         Base::Conductor { mf, eta, k } => {
             let mut op = project(cells, 1.0, 1.0, &|wl, wv| s.boundary_f(b, wl, wv));
-            let normals = mf.values();
             let energy: Vec<T> = (0..N_THETA)
                 .into_par_iter()
-                .map(|j| cell_energy(cells, j, |w| conductor_energy(&normals, s.g2, *eta, *k, w)))
+                .map(|j| cell_energy(cells, j, |w| conductor_energy(mf, s.g2, *eta, *k, w)))
                 .collect();
             rescale_columns(cells, &mut op, |j| energy[j]);
             op

@@ -20,9 +20,12 @@ use std::path::PathBuf;
 /// `n` stratified visible normals of `mf` seen from `wi` (a rank-1 lattice in the VNDF's primary sample space): the
 /// nodes of the quadratures E_{m∼D_wi}[·] that every table below integrates.
 pub fn visible_normals(mf: &Microfacet, wi: DVec3, n: usize) -> Vec<DVec3> {
-    (0..n)
-        .map(|k| mf.sample_visible(wi, (k as f64 + 0.5) / n as f64, (k as f64 * 0.618_033_988_749_895 + 0.5).fract()))
-        .collect()
+    lattice(n).map(|(u1, u2)| mf.sample_visible(wi, u1, u2)).collect()
+}
+
+/// The primary samples (u1, u2) of `visible_normals`: a rank-1 lattice of n points.
+pub fn lattice(n: usize) -> impl Iterator<Item = (f64, f64)> {
+    (0..n).map(move |k| ((k as f64 + 0.5) / n as f64, (k as f64 * 0.618_033_988_749_895 + 0.5).fract()))
 }
 
 /// Where this build's tables are cached: <cache root>/tables/<source hash> (cache.rs).
