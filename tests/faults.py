@@ -277,8 +277,9 @@ except KeyboardInterrupt:
 
 
 def interrupts() -> dict:
-    """Ctrl-C during a tabulated precomputation (seconds of adding-doubling) and during a long render (the reference
-    under the sky): KeyboardInterrupt within a second, and no cache entry or temporary file left."""
+    """Ctrl-C during a tabulated precomputation (seconds of adding-doubling), during tabulated's gradient (its solve in
+    Duals) and during a long render (the reference under the sky): KeyboardInterrupt within a second, and no cache
+    entry or temporary file left."""
     out, solve = {}, "slow.eval([0, 0, 1], [0, 0, 1], 'tabulated')"
     with tempfile.TemporaryDirectory() as tmp:  # how long the solve takes, uninterrupted
         started = time.perf_counter()
@@ -290,6 +291,22 @@ def interrupts() -> dict:
         r["solve seconds"] = seconds
         r["left behind"] = [p.name for p in cache.rglob("*") if p.is_file() and "tabulated" in p.name]
         out["tabulated precomputation"] = r
+    # The gradient's own solve (in Duals), after the f64 solve that `eval` cached: Ctrl-C must reach it too.
+    setup = (
+        "import lamina\ngrad = lamina.Stack([lamina.Dielectric(1.5, thickness=2.0, sigma_a=0.1, "
+        "sigma_s=(lamina.Param('s', 0.5, 5.0), 2.0, 1.0), g=0.5), lamina.Diffuse(0.5)])\n"
+        "grad.bind(s=3.0).eval([0, 0, 1], [0, 0, 1], 'tabulated')\n"
+    )
+    work = "grad.eval_grad([0, 0, 1], [0, 0, 1], 'tabulated', s=3.0)"
+    with tempfile.TemporaryDirectory() as tmp:  # how long the gradient takes, uninterrupted
+        timed = (
+            f"import json, time\nt = time.perf_counter()\n{work}\nprint(json.dumps({{'s': time.perf_counter() - t}}))"
+        )
+        seconds = _child(setup + timed, Path(tmp))["s"]
+    with tempfile.TemporaryDirectory() as tmp:
+        r = _interrupt(setup, work, Path(tmp), wait=0.3 * seconds)
+        r["gradient seconds"] = seconds
+        out["tabulated gradient"] = r
     with tempfile.TemporaryDirectory() as tmp:
         setup = "import lamina\nstack = lamina.materials.suite('three-layer')\n"
         work = "lamina.render(stack, 'reference', width=256, height=256, spp=256, device='cpu', progress=False)"

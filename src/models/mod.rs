@@ -211,7 +211,7 @@ macro_rules! dual_width {
 pub(crate) use dual_width;
 
 /// f and its parameter gradient at a direction pair (wi, wo): per channel, f and then ∂f/∂p of each parameter.
-pub type Gradient<'a> = Box<dyn Fn(DVec3, DVec3, &mut [f64]) + Sync + 'a>;
+pub type Gradient<'a> = Box<dyn Fn(DVec3, DVec3, &mut [f64]) + Send + Sync + 'a>;
 
 /// A lobe of the sampling mixture of a model: a GGX/Beckmann reflection lobe sampled by its visible normals, or the
 /// cosine-weighted hemisphere (diffuse terms).

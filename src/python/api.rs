@@ -460,7 +460,8 @@ pub fn eval_grad<'py>(
             Ok(models::Seed { param, layer, field: field.parse()?, channel: usize::try_from(channel).ok(), scale })
         })
         .collect::<crate::error::Result<Vec<_>>>()?;
-    let g = p.gradient(&seeds, n_params)?;
+    // tabulated's gradient solves the stack again (seconds): without the GIL, where Ctrl-C stops it.
+    let g = interruptible(py, || p.gradient(&seeds, n_params))?;
     let dirs = [("wi", wi, Kind::Direction), ("wo", wo, Kind::Direction)];
     batch(py, &dirs, stack.channels * (n_params + 1), |r, o| g(vec3(&r[0]), vec3(&r[1]), o))
 }
