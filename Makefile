@@ -50,7 +50,7 @@ system-deps:
 	fi
 
 test-deps: venv system-deps
-	$(VPY) -m pip install -q "pytest>=7" "hypothesis>=6" "colour-science>=0.4.4" scipy "mitsuba>=3.9,<3.10" "ruff==0.17.6" "dask[distributed]>=2024.1" mypy nbclient nbformat ipykernel
+	$(VPY) -m pip install -q "pytest>=7" "hypothesis>=6" "colour-science>=0.4.4" scipy "mitsuba>=3.9,<3.10" "ruff==0.17.6" "dask[distributed]>=2024.1" "iadpython>=0.5" mypy nbclient nbformat ipykernel
 
 rust-test:
 	cargo test --release
