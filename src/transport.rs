@@ -4,10 +4,9 @@
 //! them onto its grid. Both read them from here, so that they solve the same transport.
 
 use crate::dual::Real;
-use crate::models::Field;
 use crate::optics::distribution::{Distribution, G2Form, Microfacet};
 use crate::optics::{diffuse, fresnel};
-use crate::stack::{Layer, Stack};
+use crate::stack::{Field, Layer, Stack};
 use glam::DVec3;
 
 /// The microsurface of every rough boundary: its distribution and masking-shadowing (the reference's options, which

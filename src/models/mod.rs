@@ -19,6 +19,7 @@ pub mod steinberg;
 pub mod tabulated;
 pub mod weidlich_wilkie;
 
+pub use crate::stack::Field;
 pub use common::block::{eval_fan, eval_one, BLOCK, MAX_INPUTS};
 pub use common::options::{Args, OptionKind, OptionSpec, Value};
 
@@ -117,58 +118,6 @@ pub struct Seed {
     pub field: Field,
     pub channel: Option<usize>,
     pub scale: f64,
-}
-
-/// A layer field that gradients are taken with respect to (`Field::NAMES`: their Python names).
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum Field {
-    Ior,
-    K,
-    RoughnessX,
-    RoughnessY,
-    Angle,
-    Albedo,
-    DiffuseRoughness,
-    Thickness,
-    SigmaA,
-    SigmaS,
-    G,
-}
-
-impl Field {
-    pub const NAMES: [&'static str; 11] = [
-        "ior",
-        "k",
-        "roughness_x",
-        "roughness_y",
-        "angle",
-        "albedo",
-        "diffuse_roughness",
-        "thickness",
-        "sigma_a",
-        "sigma_s",
-        "g",
-    ];
-    pub const ALL: [Field; 11] = [
-        Field::Ior,
-        Field::K,
-        Field::RoughnessX,
-        Field::RoughnessY,
-        Field::Angle,
-        Field::Albedo,
-        Field::DiffuseRoughness,
-        Field::Thickness,
-        Field::SigmaA,
-        Field::SigmaS,
-        Field::G,
-    ];
-}
-
-impl std::str::FromStr for Field {
-    type Err = crate::error::Error;
-    fn from_str(s: &str) -> Result<Self> {
-        crate::error::parse_choice("field", s, &Self::NAMES, &Self::ALL)
-    }
 }
 
 /// The most parameters one gradient takes.
