@@ -128,6 +128,11 @@ impl Field {
         Field::SigmaS,
         Field::G,
     ];
+
+    /// The field's Python name.
+    pub fn name(self) -> &'static str {
+        Self::NAMES[Self::ALL.iter().position(|f| *f == self).unwrap_or(0)]
+    }
 }
 
 impl std::str::FromStr for Field {

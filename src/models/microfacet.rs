@@ -130,10 +130,9 @@ fn gradient<const N: usize>(p: &Prepared, seeds: &[Seed]) -> Result<Gradient<'st
         |layer: usize, field: Field, channel: usize, v: f64| super::seeded::<N>(seeds, layer, field, channel, v);
     let dual = |field: Field, channel: usize, v: f64| dual_at(0, field, channel, v);
     let takes = |fields: &[Field], what: &str| match seeds.iter().find(|s| !fields.contains(&s.field)) {
-        Some(s) => value_error(format!(
-            "model 'microfacet' has no gradient by {} of this stack ({what})",
-            Field::NAMES[Field::ALL.iter().position(|f| *f == s.field).unwrap_or(0)]
-        )),
+        Some(s) => {
+            value_error(format!("model 'microfacet' has no gradient by {} of this stack ({what})", s.field.name()))
+        }
         None => Ok(()),
     };
     match p {

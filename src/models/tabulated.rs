@@ -34,8 +34,9 @@ use crate::optics::distribution::{Distribution, G2Form, Microfacet};
 use crate::optics::fresnel::{self, FresnelForm};
 use crate::optics::lanes::{self, Ggx};
 use crate::stack::{Layer, Stack};
-use crate::tables::adding_doubling::PAIRS;
-use crate::tables::adding_doubling::{channel_key, node_values, pair, tabulate, Cells, NODES, N_PHI, N_THETA, ORDERS};
+use crate::tables::adding_doubling::{
+    channel_key, node_values, pair, tabulate, Cells, NODES, N_PHI, N_THETA, ORDERS, PAIRS,
+};
 use crate::tables::{cached, node, node_lanes};
 use crate::transport::{ChannelStack, Microsurface};
 use glam::DVec3;
@@ -393,7 +394,7 @@ impl Model for Prepared {
 fn refused(stack: &Stack, surface: Microsurface, seeds: &[Seed]) -> Option<String> {
     let axis = |f: Field| matches!(f, Field::RoughnessX | Field::RoughnessY);
     for s in seeds {
-        let name = Field::NAMES[Field::ALL.iter().position(|f| *f == s.field).unwrap_or(0)];
+        let name = s.field.name();
         let why = match (&stack.layers[s.layer], surface.distribution, surface.g2) {
             (Layer::Dielectric { alpha, .. }, _, _)
                 if *alpha != (0.0, 0.0) && (axis(s.field) || s.field == Field::Ior) =>
