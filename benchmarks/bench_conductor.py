@@ -29,6 +29,11 @@ ETA, K, ALPHA = (0.2, 0.45, 1.4), (3.6, 2.5, 1.9), 0.3
 MITSUBA = "Mitsuba 3 llvm_ad_rgb roughconductor (float32)"
 ALONE = "lamina float32 in/out, before any Mitsuba call"
 MEMCPY = "memcpy of the same bytes (36 per pair; the roofline)"
+#: Seconds of untimed calls of an implementation before each of its timed calls. Dr.Jit's worker threads keep
+#: spinning for about 20 ms after each of its calls (measured: 20 ms of CPU time on its "nt" threads in the second
+#: after a call, none later); a call timed in that window shares the two cores with them and took 2x as long. Every
+#: implementation gets the same settling, Mitsuba included (lamina's rayon workers spin too).
+SETTLE = 0.03
 
 
 def timed(fn) -> float:
@@ -37,14 +42,22 @@ def timed(fn) -> float:
     return time.perf_counter() - t0
 
 
+def settled(fn) -> float:
+    """The time of one call of fn after SETTLE seconds of untimed calls of it."""
+    t0 = time.perf_counter()
+    while time.perf_counter() - t0 < SETTLE:
+        fn()
+    return timed(fn)
+
+
 def measure_all(fns: dict, repeats: int = REPEATS) -> dict:
     """{name: (every time, first call)}: one cold call each, then `repeats` rounds that time every implementation
-    in turn (round-robin), so that machine noise falls on all of them alike."""
+    in turn (round-robin, each call settled), so that machine noise falls on all of them alike."""
     cold = {name: timed(fn) for name, fn in fns.items()}
     times = {name: [] for name in fns}
     for _ in range(repeats):
         for name, fn in fns.items():
-            times[name].append(timed(fn))
+            times[name].append(settled(fn))
     return {name: (times[name], cold[name]) for name in fns}
 
 
@@ -171,8 +184,11 @@ def main() -> None:
         f"{N:,} random (wi, wo) pairs, GGX alpha = {ALPHA}, RGB complex IOR, separable Smith (Mitsuba's formula). "
         "lamina: `Stack.eval` on NumPy arrays, every conversion included. Mitsuba: `np.array(bsdf.eval(ctx, si, wo))` "
         "and nothing else (inputs built once as Dr.Jit arrays); it returns f·cos θ, lamina f, each its own quantity. "
-        f"Median of {REPEATS} round-robin runs after a cold call, with the quartiles; each thread count in a process "
-        "of its own, with OPENBLAS_NUM_THREADS=1 (NumPy's BLAS threads otherwise spin on the same two cores). "
+        f"Median of {REPEATS} round-robin runs after a cold call, with the quartiles, each timed call after "
+        f"{1000 * SETTLE:.0f} ms of untimed calls of the same implementation (Dr.Jit's worker threads spin for "
+        "about 20 ms after its calls, and a lamina call timed in that window took twice as long); each thread count "
+        "in a process of its own, with OPENBLAS_NUM_THREADS=1 (NumPy's BLAS threads otherwise spin on the same two "
+        "cores). "
         "lamina's float32 inputs run in its float32 lane engine (src/engine). Largest relative difference lamina vs "
         "Mitsuba on these pairs (values above 1e-3 of the peak): "
         f"{two['agreement']:.1e}. Schlick's Fresnel instead of the exact conductor Fresnel changes f by up to "
@@ -202,9 +218,7 @@ def main() -> None:
         f"**lamina (float32) / Mitsuba 3 llvm_ad_rgb throughput ratio: {ratio[2]:.2f}x at 2 threads, {ratio[1]:.2f}x "
         f"at 1 thread** (Mitsuba: {N / np.median(two['rows'][MITSUBA]['times']):,.0f} evaluations/s at 2 threads).",
         "",
-        "The first row times lamina before Mitsuba has run in the process: after Mitsuba's calls, lamina runs "
-        "slower in the same process (the second row, in the round-robin), which a run of lamina alone does not show "
-        "(the cause, presumably Dr.Jit's worker threads still holding the two cores, is not traced).",
+        "The first row times lamina before Mitsuba has run in the process, the second in the round-robin with it.",
         "",
         f"Thread scaling 1 → 2 threads: lamina {rate[2][lamina32] / rate[1][lamina32]:.2f}x (measured alone: "
         f"{rate[2][ALONE] / rate[1][ALONE]:.2f}x), Mitsuba {rate[2][MITSUBA] / rate[1][MITSUBA]:.2f}x. Roofline at 2 "

@@ -100,7 +100,8 @@ def main() -> None:
         "for the next calls with the same stack and options; that first call (10 pairs) is timed on its own, the "
         "other columns time the calls after it. `make bench` runs every benchmark with OPENBLAS_NUM_THREADS=1. "
         "Ratio: throughput relative to Mitsuba 3 `llvm_ad_rgb` `roughconductor` (one GGX lobe) measured in the same "
-        "round-robin as each stack's rows (one round-robin per stack, so that a stack's prepared models stay among "
+        "round-robin as each stack's rows, each timed call settled as in the conductor section (one round-robin "
+        "per stack, so that a stack's prepared models stay among "
         "the 16 that lamina keeps): "
         + ", ".join(f"{k} {N / t:,.0f}" for k, t in mitsuba_ts.items())
         + " evaluations/s in this run.",

@@ -11,14 +11,23 @@ use crate::engine::{Floats, V3};
 #[derive(Clone, Copy, Debug)]
 pub struct ConductorIor {
     form: FresnelForm,
-    /// Exact: η² − κ² − 1 and 4η²κ²; whether η² − κ² − sin²θ < 0 can occur (then a² needs its cancellation-free
-    /// form).
+    /// Exact: η² − κ² − 1, 4η²κ² and √(2η²κ²); the sign of t0 = η² − κ² − sin²θ over every angle.
     e2k2m1: f32,
     c4: f32,
-    tir: bool,
+    n: f32,
+    sign: Sign,
     /// Schlick: F0. Lazányi: F = min(1, a + b (1 − cos)^5) with a = F0 and b = 4η / ((η + 1)² + κ²).
     f0: f32,
     b: f32,
+}
+
+/// The sign of t0 = η² − κ² − sin²θ for every θ: ≥ 0 (η² − κ² ≥ 1: a dielectric-like IOR), ≤ 0 (η ≤ κ: every
+/// common metal), or either.
+#[derive(Clone, Copy, Debug, PartialEq)]
+enum Sign {
+    Positive,
+    Negative,
+    Mixed,
 }
 
 impl ConductorIor {
@@ -28,7 +37,14 @@ impl ConductorIor {
             form,
             e2k2m1: (e2k2 - 1.0) as f32,
             c4: (4.0 * eta * eta * k * k) as f32,
-            tir: e2k2 < 1.0,
+            n: (2.0 * eta * eta * k * k).sqrt() as f32,
+            sign: if e2k2 >= 1.0 {
+                Sign::Positive
+            } else if e2k2 <= 0.0 {
+                Sign::Negative
+            } else {
+                Sign::Mixed
+            },
             f0: super::fresnel::f0(eta, k) as f32,
             b: (4.0 * eta / ((eta + 1.0).powi(2) + k * k)) as f32,
         }
@@ -36,7 +52,10 @@ impl ConductorIor {
 }
 
 /// Conductor Fresnel reflectance at cos θ in the chosen form (fresnel::conductor, schlick, lazanyi). The exact form
-/// as F = ½ r_s (1 + r_p / r_s) = (A − B) P / ((A + B)(P + Q)): one division (two more near index matching, below).
+/// as F = ½ r_s (1 + r_p / r_s) = (A − B) P / ((A + B)(P + Q)) with A = a² + b² + cos²θ, B = 2a cos θ,
+/// P = (a² + b²) cos²θ + sin⁴θ and Q = B sin²θ: one division. Where t0 = η² − κ² − sin²θ ≤ 0 (every common metal),
+/// a = √(2η²κ²) / √(a² + b² − t0) without cancellation, and its denominator multiplies A ± B and P, Q instead of
+/// dividing: still one division. Near index matching (below) and where t0 takes both signs, two more.
 #[inline(always)]
 pub fn conductor(cos: Floats, ior: &ConductorIor) -> Floats {
     let (zero, one) = (Floats::splat(0.0), Floats::splat(1.0));
@@ -50,18 +69,25 @@ pub fn conductor(cos: Floats, ior: &ConductorIor) -> Floats {
             let t0 = cos.mul_add(cos, Floats::splat(ior.e2k2m1));
             let c4 = Floats::splat(ior.c4);
             let a2b2 = t0.mul_add(t0, c4).sqrt();
-            let a2 = if ior.tir {
+            let (sum, p) = (a2b2 + cos2, cos2.mul_add(a2b2, sin2 * sin2));
+            if ior.sign == Sign::Negative {
+                // a = n / d: A ± B and P, Q times d.
+                let d = (a2b2 - t0).sqrt();
+                let (sum_d, two_n_cos) = (sum * d, 2.0 * ior.n * cos);
+                let p_d = p * d;
+                return ((sum_d - two_n_cos) * p_d / ((sum_d + two_n_cos) * two_n_cos.mul_add(sin2, p_d))).max(zero);
+            }
+            let a2 = if ior.sign == Sign::Mixed {
                 Floats::select(t0.ge(zero), 0.5 * (a2b2 + t0), 0.5 * c4 / (a2b2 - t0))
             } else {
                 0.5 * (a2b2 + t0)
             };
             let a = a2.sqrt();
             let two_a_cos = 2.0 * a * cos;
-            let (sum, p) = (a2b2 + cos2, cos2.mul_add(a2b2, sin2 * sin2));
             // r_s's numerator (a − cos θ)² + b². Without total internal reflection (η² − κ² ≥ 1) a ≈ cos θ near
             // index matching, where a² + b² + cos² θ − 2a cos θ cancels: there a − cos θ = (a² − cos² θ)/(a + cos θ)
             // = (η² − κ² − 1 + b²)/(a + cos θ), a sum of non-negative terms, with b² = η²κ²/a².
-            let num = if ior.tir {
+            let num = if ior.sign == Sign::Mixed {
                 sum - two_a_cos
             } else {
                 let b2 = (0.25 * c4) / a2.max(Floats::splat(f32::MIN_POSITIVE));
@@ -381,10 +407,22 @@ mod tests {
     #[test]
     fn the_conductor_fresnel_forms_match_their_float64_twins() {
         // Relative to F (absolute 1e-12: float64 rounding of an F that vanishes, η = 1, κ = 0), over cos θ in (0, 1]:
-        // gold, copper, a dielectric-like κ ≈ 0, a weakly absorbing metal and nearly index-matched ones. The engine's
-        // bound, 1e-5.
+        // gold, copper, a dielectric-like κ ≈ 0, a weakly absorbing metal, nearly index-matched ones, and IORs whose
+        // η² − κ² − sin²θ takes both signs (total internal reflection for κ = 0). The engine's bound, 1e-5.
         for form in FresnelForm::ALL {
-            for (eta, k) in [(0.18, 3.4), (0.27, 3.6), (1.5, 1e-4), (2.5, 0.2), (1.0, 1.0), (1.0, 0.0), (1.001, 0.01)] {
+            for (eta, k) in [
+                (0.18, 3.4),
+                (0.27, 3.6),
+                (0.5, 0.6),
+                (1.5, 1e-4),
+                (2.5, 0.2),
+                (1.0, 1.0),
+                (1.0, 0.0),
+                (1.001, 0.01),
+                (0.9, 0.3),
+                (0.5, 0.1),
+                (0.7, 0.0),
+            ] {
                 let ior = ConductorIor::new(form, eta, k);
                 for i in 0..1000 {
                     let cos = (i as f32 + 0.5) / 1000.0;
