@@ -9,6 +9,7 @@ use std::ops::{Add, Div, Mul, Neg, Sub};
 /// A real number as the generic primitives compute with it: f64, or a Dual carrying derivatives.
 pub trait Real:
     Copy
+    + PartialEq
     + Send
     + Sync
     + std::iter::Sum

@@ -18,6 +18,7 @@ pub struct Microsurface {
 }
 
 /// One interface as a path sees it: roughness and the relative IOR η_below / η_above (f64, or Duals).
+#[derive(Clone, Copy, PartialEq)]
 pub struct Interface<T = f64> {
     pub mf: Microfacet<T>,
     pub eta: T,

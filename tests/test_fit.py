@@ -243,19 +243,51 @@ def test_tabulated_s_gradients_are_those_of_its_solve(rng):
     for template, values in cases:
         grad = _check_tabulated(template, values, wi, wo)
         assert np.all(np.abs(grad).max(axis=(0, 1)) > 0)  # every parameter moves f
-    # A rough coat's IOR and roughness: seen from below, its energy's Fresnel cusp at total internal reflection makes
-    # the solve jagged on scales of 1e-6 (src/tables/adding_doubling.rs); a roughness on one axis is anisotropic.
-    rough = Stack([Dielectric(Param("n", 1.2, 2.0), roughness=0.2), metal("Cu", 0.3)])
-    with pytest.raises(ValueError, match=r"'tabulated' has no gradient by ior of layer 0 \(Dielectric\): a rough coat"):
-        rough.eval_grad(wi, wo, "tabulated")
-    rough = Stack([Dielectric(1.5, roughness=Param("r", 0.01, 1.0)), metal("Cu", 0.3)])
-    with pytest.raises(ValueError, match=r"no gradient by roughness_x of layer 0 \(Dielectric\): a rough coat"):
-        rough.eval_grad(wi, wo, "tabulated")
+    # A roughness on one axis is anisotropic.
     one_axis = Stack([Dielectric(1.5), Conductor(1.0, 3.0, roughness=(Param("rx", 0.01, 1.0), 0.3))])
     with pytest.raises(ValueError, match=r"roughness_x of layer 1 \(Conductor\): on one axis"):
         one_axis.eval_grad(wi, wo, "tabulated", rx=0.3)
     with pytest.raises(ValueError, match=r"with distribution='beckmann'"):
         cases[1][0].eval_grad(wi, wo, "tabulated", distribution="beckmann", **cases[1][1])
+
+
+def test_tabulated_s_rough_coat_gradients_are_central_differences_of_its_solve(rng):
+    """A rough coat's IOR and roughness: seen from below, the coat's Fresnel cusp at total internal reflection makes
+    the solve jagged on fine scales, and tabulated takes these derivatives as central differences of its solve at 2%
+    of the parameter (src/models/tabulated.rs DIFFERENCE_STEP), the rest in Duals. Against central differences of
+    `Stack.eval` at the same step, through the bound stacks (which move the next interface's relative IOR exactly,
+    where the model moves it linearly: a central difference cancels the difference to second order), and for the
+    exact parameters at 1e-3 of them. Measured: 6e-8 of the largest |∂f/∂p| over a diffuse base (the float32 table's
+    rounding), 4.2e-5 where the coat's IOR also moves the copper's relative η and κ, 1e-5 for the exact parameters."""
+    wi, wo = random_hemisphere(rng, 150, 0.05), random_hemisphere(rng, 150, 0.05)
+    cases = [
+        (
+            Stack([Dielectric(Param("n", 1.2, 2.0), roughness=Param("r", 0.01, 1.0)), Diffuse(Param("a", 0.0, 1.0))]),
+            dict(n=rng.uniform(1.3, 1.7), r=rng.uniform(0.1, 0.4), a=rng.uniform(0.3, 0.8)),
+            {"n", "r"},
+        ),
+        (
+            Stack(
+                [
+                    Dielectric(Param("n", 1.2, 2.0), roughness=0.2, thickness=0.5, sigma_a=Param("sa", 0.0, 3.0)),
+                    metal("Cu", 0.3),
+                ]
+            ),
+            dict(n=rng.uniform(1.3, 1.7), sa=rng.uniform(0.2, 1.0)),
+            {"n"},
+        ),
+    ]
+    for template, values, differenced in cases:
+        f, grad = template.eval_grad(wi, wo, "tabulated", **values)
+        np.testing.assert_allclose(f, template.bind(**values).eval(wi, wo, "tabulated"), rtol=1e-6, atol=1e-9 * f.max())
+        for j, p in enumerate(template.params):
+            h = (2e-2 if p.name in differenced else 1e-3) * values[p.name]
+            up, down = dict(values, **{p.name: values[p.name] + h}), dict(values, **{p.name: values[p.name] - h})
+            fd = (template.bind(**up).eval(wi, wo, "tabulated") - template.bind(**down).eval(wi, wo, "tabulated")) / (
+                2 * h
+            )
+            assert np.abs(fd).max() > 0
+            np.testing.assert_allclose(grad[..., j], fd, rtol=1e-3, atol=1e-4 * np.abs(fd).max(), err_msg=p.name)
 
 
 def test_a_diffuse_base_s_gradients_and_a_parameter_f_ignores(rng):
@@ -461,8 +493,9 @@ def test_tabulated_agrees_with_iadpython_forward_and_inverse(rng):
 def test_fit_models_says_which_models_explain_a_measurement(rng):
     """A rough conductor made by microfacet: every model with gradients fits it (a single layer is belcour's one lobe
     with its FGD energy, which misses the Fresnel's angular shape; tabulated's single boundary is microfacet's),
-    microfacet and tabulated exactly, belcour last; a layered template whose rough coat only belcour differentiates is
-    fitted by belcour alone, the others skipped with their reasons; the table and plot name every model."""
+    microfacet and tabulated exactly, belcour last; a layered template (a rough coat) is fitted by tabulated, which
+    recovers its own data's IOR, and by belcour, microfacet skipped with its reason; the table and plot name every
+    model."""
     template = Stack([Conductor(Param("eta", 0.1, 3.0), Param("k", 0.5, 6.0), roughness=Param("alpha", 0.02, 0.9))])
     wi, wo = random_hemisphere(rng, 800, 0.05), random_hemisphere(rng, 800, 0.05)
     data = template.bind(eta=0.9, k=3.0, alpha=0.3).eval(wi, wo, "microfacet")
@@ -472,11 +505,11 @@ def test_fit_models_says_which_models_explain_a_measurement(rng):
     assert all(c > 0 for c in result.costs.values())
     assert "| microfacet |" in result.table() and "| belcour |" in result.table()
     layered = Stack([Dielectric(Param("eta", 1.2, 2.0), roughness=0.2), Diffuse(0.5)])
-    data = layered.bind(eta=1.5).eval(wi, wo, "belcour", interpolated=False)
+    data = layered.bind(eta=1.5).eval(wi, wo, "tabulated")
     result = lamina.fit_models(layered, wi, wo, data, starts=1)
-    assert list(result.fits) == ["belcour"] and {"microfacet", "tabulated"} <= set(result.skipped)
-    assert "a rough coat" in result.skipped["tabulated"]
-    assert abs(result.fits["belcour"].params["eta"] - 1.5) < 1e-6
+    assert set(result.fits) == {"tabulated", "belcour"} and "microfacet" in result.skipped
+    assert "a single opaque interface" in result.skipped["microfacet"]
+    assert abs(result.fits["tabulated"].params["eta"] - 1.5) < 1e-4
     ax = result.plot()
     assert ax.get_xlabel() == "ns per evaluation"
 

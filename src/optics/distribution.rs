@@ -28,7 +28,7 @@ impl std::str::FromStr for Distribution {
 
 /// A microfacet distribution: its roughnesses and tangent frame are f64, or Duals where a gradient is taken with
 /// respect to them (src/dual.rs).
-#[derive(Clone, Copy, Debug)]
+#[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Microfacet<T = f64> {
     pub dist: Distribution,
     pub alpha_x: T,

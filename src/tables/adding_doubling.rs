@@ -24,10 +24,12 @@ use crate::optics::{fresnel, reflect_about, refract_about};
 use crate::quadrature::gauss_legendre;
 use crate::sampling::henyey_greenstein;
 use crate::stack::Stack;
-use crate::transport::{Base, ChannelStack, Microsurface};
+use crate::transport::{Base, ChannelStack, Interface, Microsurface};
 use glam::DVec3;
 use rayon::prelude::*;
+use std::cell::RefCell;
 use std::f64::consts::PI;
+use std::rc::Rc;
 use std::sync::atomic::{AtomicBool, Ordering};
 
 /// Zenith cells over [0, π/2], of equal Δx in x = √(1 − cos θ).
@@ -516,7 +518,12 @@ fn over<T: Real>(a: &Operators<T>, r: Op<T>, with_top: bool) -> Op<T> {
 
 /// The reflection of channel stack `s` less its top boundary's own reflection (which the model evaluates exactly),
 /// order by order, for `paths`; Interrupted when asked to stop (interrupt.rs), checked layer by layer.
-fn reflection_below_top<T: Real>(cells: &Cells, s: &ChannelStack<T>, paths: Paths) -> Result<Op<T>> {
+fn reflection_below_top<T: Real>(
+    cells: &Cells,
+    s: &ChannelStack<T>,
+    paths: Paths,
+    shared: &Shared<T>,
+) -> Result<Op<T>> {
     let n = s.interfaces.len();
     if n == 0 {
         return Ok(every_order(zeros()));
@@ -527,9 +534,37 @@ fn reflection_below_top<T: Real>(cells: &Cells, s: &ChannelStack<T>, paths: Path
         if let Some(sl) = slab(cells, s, i, paths)? {
             r = over(&sl, r, true);
         }
-        r = over(&interface(cells, s, i, paths), r, i > 0);
+        r = over(&shared.interface(cells, s, i, paths), r, i > 0);
     }
     Ok(r)
+}
+
+/// The interfaces' operators that the channels of one table have solved, for the channels after them: an interface
+/// of equal roughness and IOR (most coats, whose channels differ below them) is projected once.
+struct Shared<T>(RefCell<Vec<Projected<T>>>);
+
+/// An interface's operators for some paths.
+struct Projected<T> {
+    interface: Interface<T>,
+    paths: Paths,
+    ops: Rc<Operators<T>>,
+}
+
+impl<T: Real> Shared<T> {
+    fn new() -> Shared<T> {
+        Shared(RefCell::new(Vec::new()))
+    }
+
+    /// `interface(cells, s, b, paths)`, projected once per interface and paths.
+    fn interface(&self, cells: &Cells, s: &ChannelStack<T>, b: usize, paths: Paths) -> Rc<Operators<T>> {
+        let interface = s.interfaces[b];
+        if let Some(p) = self.0.borrow().iter().find(|p| (p.interface, p.paths) == (interface, paths)) {
+            return p.ops.clone();
+        }
+        let ops = Rc::new(self::interface(cells, s, b, paths));
+        self.0.borrow_mut().push(Projected { interface, paths, ops: ops.clone() });
+        ops
+    }
 }
 
 /// The cells a table node (x = k / N_THETA, k = 0 … N_THETA) interpolates, with their weights: the two cells it
@@ -568,6 +603,7 @@ pub fn node_values<T: Real, K: PartialEq>(
     let (n, ch) = (N_THETA, channels);
     let mut table = vec![T::from(0.0); PAIRS * N_PHI * ch];
     let mut done: Vec<(K, usize)> = Vec::new();
+    let shared = Shared::new();
     let cosines: Vec<f64> = (0..N_PHI)
         .flat_map(|p| {
             let phi = 2.0 * (p as f64 / (N_PHI - 1) as f64).asin();
@@ -585,11 +621,11 @@ pub fn node_values<T: Real, K: PartialEq>(
         }
         done.push((key, c));
         let s = channel(c);
-        let mut r = reflection_below_top(&cells, &s, Paths::All)?;
+        let mut r = reflection_below_top(&cells, &s, Paths::All, &shared)?;
         if s.is_delta(0) {
             // Below a smooth top, smooth boundaries reflect Dirac lobes that cells would blur: the model adds them
             // exactly (`specular`), so the table keeps the rest.
-            let dirac = reflection_below_top(&cells, &s, Paths::Dirac)?;
+            let dirac = reflection_below_top(&cells, &s, Paths::Dirac, &shared)?;
             r.iter_mut().zip(&dirac).for_each(|(r, d)| r.iter_mut().zip(d).for_each(|(r, &d)| *r = *r - d));
         }
         // ā_m(o, j) = S_m[o][j] / (π (1 + δ_m0) w_j), symmetrized.
