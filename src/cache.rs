@@ -3,12 +3,14 @@
 //! of its own (process, thread and call), then renamed into place. So a truncated, zeroed or garbage file is detected
 //! and rebuilt, never read as data; concurrent writers of one entry leave one complete file (the same bits: what they
 //! write is deterministic); and a cache that cannot be written (read-only, full) costs only a recomputation: lamina
-//! computes in memory and warns once (`take_warning`: the Python bindings issue it as a UserWarning). The tables (tables/mod.rs) and the reference results (python/lamina/reference.py)
-//! are cached here.
+//! computes in memory and warns once (`take_warning`: the Python bindings issue it as a UserWarning). The cache is
+//! bounded ($LAMINA_CACHE_LIMIT_MB, 2048 MiB by default): each write removes the least recently used entries beyond
+//! it (`prune`). The tables (tables/mod.rs) and the reference results (python/lamina/reference.py) are cached here.
 
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::Mutex;
+use std::time::{SystemTime, UNIX_EPOCH};
 
 /// The first bytes of every entry.
 const MAGIC: [u8; 8] = *b"lamina\x01\x00";
@@ -43,7 +45,46 @@ pub fn read(path: &Path) -> Option<Vec<u8>> {
     let len = u64::from_le_bytes(header[8..16].try_into().ok()?);
     let sum = u64::from_le_bytes(header[16..24].try_into().ok()?);
     let intact = header[..8] == MAGIC && bytes.len() as u64 == HEADER as u64 + len && checksum(&bytes[HEADER..]) == sum;
+    if intact {
+        // Used now: the last to be removed when the cache is over its bound (`prune`). A read-only cache keeps its times.
+        let _ = std::fs::File::options().write(true).open(path).and_then(|f| f.set_modified(SystemTime::now()));
+    }
     intact.then(|| bytes.split_off(HEADER))
+}
+
+/// The cache's bound in bytes: $LAMINA_CACHE_LIMIT_MB mebibytes, else 2048.
+fn limit() -> u64 {
+    std::env::var("LAMINA_CACHE_LIMIT_MB").ok().and_then(|v| v.trim().parse::<u64>().ok()).unwrap_or(2048) << 20
+}
+
+/// Removes the least recently used entries under `root` (by modification time, which `read` refreshes), `keep` and
+/// other writers' temporary files aside, until the entries take at most `limit` bytes. A fit with `tabulated` writes
+/// a table per evaluation (0.8 MiB each), which would otherwise fill the disk. Entries another process removes or reads
+/// meanwhile cost it a recomputation at most: nothing on disk is trusted.
+pub fn prune(root: &Path, limit: u64, keep: &Path) {
+    let mut entries = Vec::new();
+    let mut folders = vec![root.to_path_buf()];
+    while let Some(folder) = folders.pop() {
+        for e in std::fs::read_dir(&folder).into_iter().flatten().flatten() {
+            let (Ok(meta), path) = (e.metadata(), e.path()) else { continue };
+            let temporary = path.extension().is_some_and(|x| x.to_string_lossy().starts_with("tmp-"));
+            if meta.is_dir() {
+                folders.push(path);
+            } else if meta.is_file() && !temporary {
+                entries.push((meta.modified().unwrap_or(UNIX_EPOCH), meta.len(), path));
+            }
+        }
+    }
+    let mut total: u64 = entries.iter().map(|e| e.1).sum();
+    entries.sort();
+    for (_, len, path) in entries {
+        if total <= limit {
+            break;
+        }
+        if path != keep && std::fs::remove_file(&path).is_ok() {
+            total -= len;
+        }
+    }
 }
 
 /// Writes `payload` as the entry at `path`, atomically; a failure (a read-only or full cache) is warned about once
@@ -63,6 +104,11 @@ pub fn write(path: &Path, payload: &[u8]) {
         .map_or(Ok(()), std::fs::create_dir_all)
         .and_then(|_| std::fs::write(&tmp, &bytes))
         .and_then(|_| std::fs::rename(&tmp, path));
+    if written.is_ok() {
+        if let Some(root) = root().filter(|r| path.starts_with(r)) {
+            prune(&root, limit(), path);
+        }
+    }
     if let Err(e) = written {
         let _ = std::fs::remove_file(&tmp);
         warn_once(&format!(
@@ -120,6 +166,24 @@ mod tests {
         }
         std::fs::write(&path, b"").unwrap();
         assert_eq!(read(&path), None, "empty");
+    }
+
+    #[test]
+    fn over_its_bound_the_cache_removes_its_least_recently_used_entries() {
+        // Five entries used a minute apart, the oldest then read (used now): a bound of three entries keeps it, the
+        // newest and the one being written (the second oldest), and removes the two least recently used of the rest.
+        let root = scratch("prune").parent().unwrap().to_path_buf();
+        let payload = vec![7u8; 1000];
+        let entry = |k: usize| root.join("tables").join("hash").join(format!("entry-{k}"));
+        for k in 0..5 {
+            write(&entry(k), &payload);
+            let when = SystemTime::now() - std::time::Duration::from_secs(60 * (10 - k as u64));
+            std::fs::File::options().write(true).open(entry(k)).unwrap().set_modified(when).unwrap();
+        }
+        assert!(read(&entry(0)).is_some());
+        prune(&root, 3 * (HEADER as u64 + 1000), &entry(1));
+        let left: Vec<bool> = (0..5).map(|k| entry(k).exists()).collect();
+        assert_eq!(left, [true, true, false, false, true]);
     }
 
     #[test]

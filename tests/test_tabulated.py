@@ -13,7 +13,7 @@ import sys
 import numpy as np
 import pytest
 from conftest import random_hemisphere
-from lamina import Dielectric, Stack
+from lamina import Dielectric, Diffuse, Stack
 from lamina.atlas import lobe_errors
 from lamina.materials import SUITE, metal, suite
 from lamina.reference import SUITE_THETAS, suite_directions
@@ -122,3 +122,20 @@ def test_a_smooth_interface_under_a_smooth_top_is_a_dirac_lobe(tmp_path, monkeyp
     mirror = w * [-1.0, -1.0, 1.0]
     tab = stack.albedo(w, "tabulated") + stack.specular(mirror, "tabulated")
     assert np.all(np.abs(tab - albedo) <= 3 * albedo_se + 0.003), (tab, albedo, albedo_se)
+
+
+def test_the_cache_keeps_to_its_bound_removing_the_least_recently_used(tmp_path, monkeypatch):
+    """Three tables of 0.8 MiB each in a cache bounded at 2 MiB ($LAMINA_CACHE_LIMIT_MB): the third write removes the
+    first table (the least recently used), and the cache keeps the other two (src/cache.rs `prune`)."""
+    monkeypatch.setenv("LAMINA_CACHE", str(tmp_path))
+    monkeypatch.setenv("LAMINA_CACHE_LIMIT_MB", "2")
+    z = np.array([0.0, 0.0, 1.0])
+    tables, seen = [], set()
+    for eta in (1.31, 1.32, 1.33):
+        Stack([Dielectric(eta), Diffuse((0.6, 0.3, 0.2))]).eval(z, z, "tabulated")
+        tables.append(set(tmp_path.rglob("tabulated-*.f32")) - seen)
+        seen |= tables[-1]
+    left = set(tmp_path.rglob("tabulated-*.f32"))
+    assert all(len(t) == 1 for t in tables), tables
+    assert left == tables[1] | tables[2], (left, tables)
+    assert sum(p.stat().st_size for p in left) <= 2 << 20
