@@ -540,8 +540,13 @@ fn reflection_below_top<T: Real>(
 }
 
 /// The interfaces' operators that the channels of one table have solved, for the channels after them: an interface
-/// of equal roughness and IOR (most coats, whose channels differ below them) is projected once.
-struct Shared<T>(RefCell<Vec<Projected<T>>>);
+/// of equal roughness and IOR in two channels (most coats, whose channels differ below them) is projected once. Only
+/// those are kept: a dispersive coat's channels share nothing, and keeping each channel's operators (8 MiB per interface
+/// in f64) would hold them all at once.
+struct Shared<T> {
+    recurring: Vec<Interface<T>>,
+    kept: RefCell<Vec<Projected<T>>>,
+}
 
 /// An interface's operators for some paths.
 struct Projected<T> {
@@ -551,18 +556,22 @@ struct Projected<T> {
 }
 
 impl<T: Real> Shared<T> {
-    fn new() -> Shared<T> {
-        Shared(RefCell::new(Vec::new()))
+    /// For a table whose channels' interfaces are `all`.
+    fn new(all: &[Interface<T>]) -> Shared<T> {
+        let recurring = all.iter().enumerate().filter(|&(i, x)| all[..i].contains(x)).map(|(_, x)| *x).collect();
+        Shared { recurring, kept: RefCell::new(Vec::new()) }
     }
 
-    /// `interface(cells, s, b, paths)`, projected once per interface and paths.
+    /// `interface(cells, s, b, paths)`, projected once per recurring interface and paths.
     fn interface(&self, cells: &Cells, s: &ChannelStack<T>, b: usize, paths: Paths) -> Rc<Operators<T>> {
         let interface = s.interfaces[b];
-        if let Some(p) = self.0.borrow().iter().find(|p| (p.interface, p.paths) == (interface, paths)) {
+        if let Some(p) = self.kept.borrow().iter().find(|p| (p.interface, p.paths) == (interface, paths)) {
             return p.ops.clone();
         }
         let ops = Rc::new(self::interface(cells, s, b, paths));
-        self.0.borrow_mut().push(Projected { interface, paths, ops: ops.clone() });
+        if self.recurring.contains(&interface) {
+            self.kept.borrow_mut().push(Projected { interface, paths, ops: ops.clone() });
+        }
         ops
     }
 }
@@ -603,7 +612,7 @@ pub fn node_values<T: Real, K: PartialEq>(
     let (n, ch) = (N_THETA, channels);
     let mut table = vec![T::from(0.0); PAIRS * N_PHI * ch];
     let mut done: Vec<(K, usize)> = Vec::new();
-    let shared = Shared::new();
+    let shared = Shared::new(&(0..ch).flat_map(|c| channel(c).interfaces).collect::<Vec<_>>());
     let cosines: Vec<f64> = (0..N_PHI)
         .flat_map(|p| {
             let phi = 2.0 * (p as f64 / (N_PHI - 1) as f64).asin();
