@@ -521,15 +521,15 @@ fn gradient<'a>(p: &'a Prepared, seeds: &[Seed], n: usize) -> Result<Gradient<'a
     if let Some(why) = refused(&p.stack, p.surface, seeds) {
         return value_error(format!("model 'tabulated' has no gradient by {why}"));
     }
-    let mut by_difference: Vec<Seed> = seeds.iter().filter(|s| differenced(&p.stack, s)).copied().collect();
-    by_difference = seeds.iter().filter(|s| by_difference.iter().any(|d| d.param == s.param)).copied().collect();
-    let mut exact: Vec<usize> =
-        seeds.iter().map(|s| s.param).filter(|&j| by_difference.iter().all(|d| d.param != j)).collect();
+    // Every seed of a parameter that feeds a rough coat's IOR or roughness goes to the differences, the rest to the
+    // Duals, whose parameters are numbered 0.. among themselves.
+    let differenced: Vec<usize> = seeds.iter().filter(|s| differenced(&p.stack, s)).map(|s| s.param).collect();
+    let (by_difference, in_duals): (Vec<Seed>, Vec<Seed>) = seeds.iter().partition(|s| differenced.contains(&s.param));
+    let mut exact: Vec<usize> = in_duals.iter().map(|s| s.param).collect();
     exact.sort();
     exact.dedup();
-    // The exact parameters numbered 0.. for the Duals.
     let renumbered: Vec<Seed> =
-        seeds.iter().filter_map(|s| Some(Seed { param: exact.iter().position(|&j| j == s.param)?, ..*s })).collect();
+        in_duals.iter().map(|s| Seed { param: exact.partition_point(|&j| j < s.param), ..*s }).collect();
     let solved = match exact.len() {
         0 => None,
         m => Some(super::dual_width!(m, solved(p, &renumbered))?),
