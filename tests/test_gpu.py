@@ -326,7 +326,7 @@ def test_device_choice_and_errors():
     with pytest.raises(ValueError, match="at most 8 layers"):
         deep.sample(wo, np.full(3, 0.5), "steinberg", device="gpu")
     lamina.render(deep, "steinberg", width=4, height=4, device="gpu", lights=[lamina.DirectionalLight((0, 0, 1))])
-    with pytest.raises(ValueError, match="tabulates isotropic stacks"):
+    with pytest.raises(ValueError, match="'tabulated' on the GPU takes isotropic stacks"):
         materials.suite("anisotropic-coat-metal").eval(wi, wo, "tabulated", device="gpu")
     # The catalogue says which models and options run here, from the same rule.
     for m in lamina.catalogue.models():

@@ -1,7 +1,8 @@
-"""model="tabulated": the stack solved once by Fourier-series adding-doubling (tables/adding_doubling.rs) and
-interpolated. Against the reference on the suite (the issue's goal: mean lobe error ≤ 2% at θi ≤ 80°), the limits it
-states (isotropic stacks only), and its on-disk cache. The solver's exact cases (a smooth coat over Lambert, an
-index-matched coat, a lossless stack's energy) are Rust tests (models/tabulated.rs)."""
+"""model="tabulated": the stack solved once by Fourier-series adding-doubling (tables/adding_doubling.rs; anisotropic
+stacks on a grid of both azimuths, tables/anisotropic.rs) and interpolated. Against the reference on the suite (the
+issue's goal: mean lobe error ≤ 2% at θi ≤ 80°, the anisotropic coat included), the limits it states, and its on-disk
+cache. The solvers' exact cases (a smooth coat over Lambert, an index-matched coat, a lossless stack's energy; the
+anisotropic solver's isotropic limit, rotation and reciprocity) are Rust tests (models/tabulated.rs)."""
 
 from __future__ import annotations
 
@@ -13,13 +14,12 @@ import sys
 import numpy as np
 import pytest
 from conftest import random_hemisphere
-from lamina import Dielectric, Diffuse, Stack
+from lamina import Dielectric, Diffuse, Param, Stack
 from lamina.atlas import lobe_errors
 from lamina.materials import SUITE, metal, suite
 from lamina.reference import SUITE_THETAS, suite_directions
 
 LOW = np.array(SUITE_THETAS) <= 80.0
-ISOTROPIC = [name for name in SUITE if name != "anisotropic-coat-metal"]
 
 
 def _error_and_floor(name, suite_reference):
@@ -31,23 +31,32 @@ def _error_and_floor(name, suite_reference):
     return err, floor
 
 
-@pytest.mark.parametrize("name", ISOTROPIC)
+@pytest.mark.parametrize("name", SUITE)
 def test_each_suite_material_is_within_two_percent_of_the_reference(name, suite_reference):
-    # The goal (2%) plus the reference's own noise, which dominates three-layer (measured: 0.08% to 2.3%).
+    # The goal (2%) plus the reference's own noise, which dominates three-layer (measured: 0.08% to 2.3%; the
+    # anisotropic coat 0.98%: 1.9% at θi = 0, 0.8%, 1.0% and 0.15% at 30, 60 and 80°).
     err, floor = _error_and_floor(name, suite_reference)
     assert err <= 0.02 + floor, f"{name}: lobe error {err:.4f}, reference noise {floor:.4f}"
 
 
 def test_the_suite_mean_meets_the_goal(suite_reference):
-    # Measured: 0.98% over the seven isotropic materials (noise included).
-    errors = [_error_and_floor(name, suite_reference)[0] for name in ISOTROPIC]
+    # Measured: 0.98% over the seven isotropic materials (noise included), 0.98% with the anisotropic coat.
+    errors = [_error_and_floor(name, suite_reference)[0] for name in SUITE]
     assert np.mean(errors) <= 0.02, errors
 
 
-def test_anisotropic_stacks_raise_a_clear_error():
-    with pytest.raises(ValueError, match=r"isotropic stacks: layer 0 \(Dielectric\) has roughness \(0.1, 0.4\)"):
-        suite("anisotropic-coat-metal").eval([0, 0, 1], [0, 0, 1], "tabulated")
-    # A single opaque layer is its own top, evaluated exactly (model="microfacet"), anisotropic or not.
+def test_anisotropic_stacks_are_tabulated_within_their_budget(tmp_path):
+    """Yamaguchi's case (anisotropic roughness, a tangent angle per layer) is solved on a grid of both azimuths: the
+    issue's budget of 64 MiB per RGB table; no gradients (the isotropic solve's Duals) and no GPU kernel yet, each a
+    clear error. A single opaque layer is its own top, evaluated exactly (model="microfacet")."""
+    env = {**os.environ, "LAMINA_CACHE": str(tmp_path)}
+    script = "import lamina; lamina.materials.suite('anisotropic-coat-metal').eval([0, 0, 1], [0, 0, 1], 'tabulated')"
+    subprocess.check_call([sys.executable, "-c", script], env=env)
+    (table,) = (tmp_path / "tables").rglob("tabulated-*.f32")
+    assert table.stat().st_size <= 64 * 2**20
+    template = Stack([Dielectric(1.5, (0.1, 0.4), angle=0.5, thickness=Param("t", 0.0, 2.0)), metal("Al", 0.2)])
+    with pytest.raises(ValueError, match="no gradients for anisotropic stacks"):
+        template.eval_grad([0, 0, 1], [0, 0, 1], "tabulated", t=0.5)
     brushed = Stack([metal("Al", (0.15, 0.45), angle=0.5)])
     wi, wo = np.array([0.3, 0.1, 0.9]), np.array([-0.2, 0.4, 0.8])
     assert np.array_equal(brushed.eval(wi, wo, "tabulated"), brushed.eval(wi, wo, "microfacet"))

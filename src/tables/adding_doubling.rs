@@ -64,18 +64,22 @@ const THIN: f64 = 1e-5;
 /// derivatives of a parameter gradient (the same solve differentiated in forward mode).
 type Mat<T = f64> = Vec<T>;
 /// One matrix per Fourier order.
-type Op<T = f64> = Vec<Mat<T>>;
+pub(super) type Op<T = f64> = Vec<Mat<T>>;
 
 /// The zenith cells: weights w_j = Δu/2 and Gauss points (u, weight), SUB per cell, weights summing to w_j.
 pub struct Cells {
     pub w: Vec<f64>,
-    edges: Vec<f64>,
+    pub(super) edges: Vec<f64>,
     points: Vec<(f64, f64)>,
 }
 
 impl Cells {
     pub fn new() -> Cells {
-        let n = N_THETA;
+        Cells::with(N_THETA)
+    }
+
+    /// `n` cells (a coarser grid: tables/anisotropic.rs).
+    pub(super) fn with(n: usize) -> Cells {
         let edges: Vec<f64> = (0..=n).map(|k| 1.0 - (1.0 - (k as f64 / n as f64).powi(2)).powi(2)).collect();
         let gl = gauss_legendre(SUB);
         let points = (0..n)
@@ -88,7 +92,7 @@ impl Cells {
     }
 
     /// Gauss points of cell j: (u, weight).
-    fn points(&self, j: usize) -> &[(f64, f64)] {
+    pub(super) fn points(&self, j: usize) -> &[(f64, f64)] {
         &self.points[j * SUB..(j + 1) * SUB]
     }
 
@@ -123,7 +127,7 @@ impl Default for Cells {
 }
 
 /// The direction of zenith u = sin²θ and azimuth (cos φ, sin φ), on the side `z` = ±1.
-fn direction(u: f64, (c, s): (f64, f64), z: f64) -> DVec3 {
+pub(super) fn direction(u: f64, (c, s): (f64, f64), z: f64) -> DVec3 {
     let sin = u.sqrt();
     DVec3::new(sin * c, sin * s, z * (1.0 - u).sqrt())
 }
@@ -167,8 +171,8 @@ fn add<T: Real>(a: &[T], b: &[T]) -> Mat<T> {
 /// than they receive, a product of reflectances) but for the cells of a lossless layer that totally reflect at both
 /// of its smooth boundaries: a maps such a cell onto itself with weight 1 and nothing else into or out of it, so no
 /// light reaches it. Those cells are taken out of the system (their rows of x are 0, as b's are).
-fn solve_one_minus<T: Real>(a: &[T], b: &[T]) -> Mat<T> {
-    let n = N_THETA;
+pub(super) fn solve_one_minus<T: Real>(a: &[T], b: &[T]) -> Mat<T> {
+    let n = a.len().isqrt();
     let v = |k: usize| a[k].value();
     let trapped = |j: usize| {
         let leak: f64 = (0..n).filter(|&k| k != j).map(|k| v(j * n + k).abs() + v(k * n + j).abs()).sum();
@@ -274,14 +278,14 @@ fn rescale_columns<T: Real>(cells: &Cells, op: &mut Op<T>, target: impl Fn(usize
 
 /// What a rough interface (relative IOR `eta` below / above) seen from direction `w` (its side up, w.z > 0)
 /// reflects and transmits: E over visible normals of F G2/G1 and (1 − F) G2/G1 (the weights of the reference's
-/// sampling, reference.rs `scatter_interface`), on a lattice of ENERGY_NORMALS normals (tables::lattice), in f64 or
+/// sampling, reference.rs `scatter_interface`), on a lattice of `normals` normals (tables::lattice), in f64 or
 /// in Duals by the roughness and the IOR (the normals move with the roughness, the directions they scatter to with
 /// both). Seen from below (η < 1), F has a square-root cusp at the critical angle, which the lattice's normals cross as
 /// the roughness or the IOR moves: there the estimate is jagged on scales of 1e-6 (models/tabulated.rs refuses
 /// those gradients).
-fn interface_energy<T: Real>(mf: &Microfacet<T>, g2: G2Form, eta: T, w: DVec3) -> (T, T) {
+pub(super) fn interface_energy<T: Real>(mf: &Microfacet<T>, g2: G2Form, eta: T, w: DVec3, normals: usize) -> (T, T) {
     let (mut r, mut t) = (T::from(0.0), T::from(0.0));
-    for (u1, u2) in super::lattice(ENERGY_NORMALS) {
+    for (u1, u2) in super::lattice(normals) {
         let m = mf.visible_normal(w, u1, u2);
         let f = fresnel::dielectric(dot(dir(w), m), eta);
         let (o, normal) = (reflect_about(w, m), value(m));
@@ -292,13 +296,13 @@ fn interface_energy<T: Real>(mf: &Microfacet<T>, g2: G2Form, eta: T, w: DVec3) -
             t = t + (T::from(1.0) - f) * mf.g2(g2, w, o, normal) / mf.g1(w, normal);
         }
     }
-    (r / ENERGY_NORMALS as f64, t / ENERGY_NORMALS as f64)
+    (r / normals as f64, t / normals as f64)
 }
 
 /// What a rough conductor seen from `w` reflects: E over visible normals of F G2/G1, in f64 or in Duals by the
 /// roughness, η and κ.
-fn conductor_energy<T: Real>(mf: &Microfacet<T>, g2: G2Form, eta: T, k: T, w: DVec3) -> T {
-    super::lattice(ENERGY_NORMALS)
+pub(super) fn conductor_energy<T: Real>(mf: &Microfacet<T>, g2: G2Form, eta: T, k: T, w: DVec3, normals: usize) -> T {
+    super::lattice(normals)
         .map(|(u1, u2)| {
             let m = mf.visible_normal(w, u1, u2);
             let o = reflect_about(w, m);
@@ -310,7 +314,7 @@ fn conductor_energy<T: Real>(mf: &Microfacet<T>, g2: G2Form, eta: T, k: T, w: DV
             }
         })
         .sum::<T>()
-        / ENERGY_NORMALS as f64
+        / normals as f64
 }
 
 /// The average over cell j of a directional energy e(w) (w on the +z side, azimuth 0).
@@ -350,17 +354,17 @@ fn smooth_refraction<T: Real>(cells: &Cells, r: T) -> Mat<T> {
 }
 
 /// A layer's four operators: reflection of light from above and from below, transmission downward and upward.
-struct Operators<T = f64> {
-    r_top: Op<T>,
-    r_bottom: Op<T>,
-    t_down: Op<T>,
-    t_up: Op<T>,
+pub(super) struct Operators<T = f64> {
+    pub(super) r_top: Op<T>,
+    pub(super) r_bottom: Op<T>,
+    pub(super) t_down: Op<T>,
+    pub(super) t_up: Op<T>,
 }
 
 /// Which paths the operators carry: all of them, or only the Dirac part (the paths that meet smooth boundaries only
 /// and cross the slabs unscattered), which the table leaves to the model's exact `specular`.
 #[derive(Clone, Copy, PartialEq)]
-enum Paths {
+pub(super) enum Paths {
     All,
     Dirac,
 }
@@ -373,7 +377,7 @@ fn none<T: Real>() -> Operators<T> {
 
 /// The operators of interface b of channel stack `s`, for `paths`: a smooth one's in Duals by its IOR, a rough one's
 /// without derivatives.
-fn interface<T: Real>(cells: &Cells, s: &ChannelStack<T>, b: usize, paths: Paths) -> Operators<T> {
+pub(super) fn interface<T: Real>(cells: &Cells, s: &ChannelStack<T>, b: usize, paths: Paths) -> Operators<T> {
     let it = &s.interfaces[b];
     let eta = it.eta;
     if paths == Paths::Dirac && !s.is_delta(b) {
@@ -399,7 +403,7 @@ fn interface<T: Real>(cells: &Cells, s: &ChannelStack<T>, b: usize, paths: Paths
         let rt: Vec<(T, T)> = cells
             .points(j)
             .iter()
-            .map(|&(u, _)| interface_energy(&it.mf, s.g2, eta, direction(u, (1.0, 0.0), 1.0)))
+            .map(|&(u, _)| interface_energy(&it.mf, s.g2, eta, direction(u, (1.0, 0.0), 1.0), ENERGY_NORMALS))
             .collect();
         let avg =
             |k: fn(&(T, T)) -> T| cells.points(j).iter().zip(&rt).map(|(&(_, v), e)| k(e) * v).sum::<T>() / cells.w[j];
@@ -421,7 +425,7 @@ fn interface<T: Real>(cells: &Cells, s: &ChannelStack<T>, b: usize, paths: Paths
 }
 
 /// The base's reflection operator (light from above), for `paths`.
-fn base<T: Real>(cells: &Cells, s: &ChannelStack<T>, paths: Paths) -> Op<T> {
+pub(super) fn base<T: Real>(cells: &Cells, s: &ChannelStack<T>, paths: Paths) -> Op<T> {
     let b = s.interfaces.len();
     if paths == Paths::Dirac && !s.is_delta(b) {
         return every_order(zeros());
@@ -434,7 +438,7 @@ fn base<T: Real>(cells: &Cells, s: &ChannelStack<T>, paths: Paths) -> Op<T> {
             let mut op = project(cells, 1.0, 1.0, &|wl, wv| s.boundary_f(b, wl, wv));
             let energy: Vec<T> = (0..N_THETA)
                 .into_par_iter()
-                .map(|j| cell_energy(cells, j, |w| conductor_energy(mf, s.g2, *eta, *k, w)))
+                .map(|j| cell_energy(cells, j, |w| conductor_energy(mf, s.g2, *eta, *k, w, ENERGY_NORMALS)))
                 .collect();
             rescale_columns(cells, &mut op, |j| energy[j]);
             op
@@ -445,7 +449,12 @@ fn base<T: Real>(cells: &Cells, s: &ChannelStack<T>, paths: Paths) -> Op<T> {
 
 /// The operators of slab i for `paths` (the Dirac part is its unscattered beam): None when it does nothing (no
 /// thickness or no extinction); Interrupted when asked to stop during its doublings.
-fn slab<T: Real>(cells: &Cells, s: &ChannelStack<T>, i: usize, paths: Paths) -> Result<Option<Operators<T>>> {
+pub(super) fn slab<T: Real>(
+    cells: &Cells,
+    s: &ChannelStack<T>,
+    i: usize,
+    paths: Paths,
+) -> Result<Option<Operators<T>>> {
     let sl = &s.slabs[i];
     let tau = (sl.sigma_a + sl.sigma_s) * sl.thickness;
     let zero = T::from(0.0);
@@ -518,7 +527,7 @@ fn over<T: Real>(a: &Operators<T>, r: Op<T>, with_top: bool) -> Op<T> {
 
 /// The reflection of channel stack `s` less its top boundary's own reflection (which the model evaluates exactly),
 /// order by order, for `paths`; Interrupted when asked to stop (interrupt.rs), checked layer by layer.
-fn reflection_below_top<T: Real>(
+pub(super) fn reflection_below_top<T: Real>(
     cells: &Cells,
     s: &ChannelStack<T>,
     paths: Paths,
@@ -543,7 +552,7 @@ fn reflection_below_top<T: Real>(
 /// of equal roughness and IOR in two channels (most coats, whose channels differ below them) is projected once. Only
 /// those are kept: a dispersive coat's channels share nothing, and keeping each channel's operators (8 MiB per interface
 /// in f64) would hold them all at once.
-struct Shared<T> {
+pub(super) struct Shared<T> {
     recurring: Vec<Interface<T>>,
     kept: RefCell<Vec<Projected<T>>>,
 }
@@ -557,13 +566,13 @@ struct Projected<T> {
 
 impl<T: Real> Shared<T> {
     /// For a table whose channels' interfaces are `all`.
-    fn new(all: &[Interface<T>]) -> Shared<T> {
+    pub(super) fn new(all: &[Interface<T>]) -> Shared<T> {
         let recurring = all.iter().enumerate().filter(|&(i, x)| all[..i].contains(x)).map(|(_, x)| *x).collect();
         Shared { recurring, kept: RefCell::new(Vec::new()) }
     }
 
     /// `interface(cells, s, b, paths)`, projected once per recurring interface and paths.
-    fn interface(&self, cells: &Cells, s: &ChannelStack<T>, b: usize, paths: Paths) -> Rc<Operators<T>> {
+    pub(super) fn interface(&self, cells: &Cells, s: &ChannelStack<T>, b: usize, paths: Paths) -> Rc<Operators<T>> {
         let interface = s.interfaces[b];
         if let Some(p) = self.kept.borrow().iter().find(|p| (p.interface, p.paths) == (interface, paths)) {
             return p.ops.clone();
@@ -578,10 +587,10 @@ impl<T: Real> Shared<T> {
 
 /// The cells a table node (x = k / N_THETA, k = 0 … N_THETA) interpolates, with their weights: the two cells it
 /// separates, the one cell at either end.
-fn node_cells(k: usize) -> Vec<(usize, f64)> {
+pub(super) fn node_cells(k: usize, n: usize) -> Vec<(usize, f64)> {
     match k {
         0 => vec![(0, 1.0)],
-        k if k == N_THETA => vec![(N_THETA - 1, 1.0)],
+        k if k == n => vec![(n - 1, 1.0)],
         k => vec![(k - 1, 0.5), (k, 0.5)],
     }
 }
@@ -644,8 +653,8 @@ pub fn node_values<T: Real, K: PartialEq>(
             for i in 0..=o {
                 let orders = if i == 0 || o == 0 { 1 } else { ORDERS };
                 let mut am = [T::from(0.0); ORDERS];
-                for (ci, wi) in node_cells(i) {
-                    for (co, wo) in node_cells(o) {
+                for (ci, wi) in node_cells(i, N_THETA) {
+                    for (co, wo) in node_cells(o, N_THETA) {
                         (0..orders).for_each(|m| am[m] = am[m] + coefficient(m, co, ci) * (wi * wo));
                     }
                 }

@@ -3,6 +3,7 @@
 //! tables of `model="tabulated"` (adding-doubling).
 
 pub mod adding_doubling;
+pub mod anisotropic;
 pub mod elek;
 pub mod fgd;
 pub mod fit;

@@ -18,7 +18,7 @@ use crate::engine::{self, Floats, Rows, LANES, V3};
 use crate::error::{value_error, Result};
 use crate::models::common::block::simd_columns;
 use crate::models::common::mixture::DEFENSIVE;
-use crate::models::tabulated::{self, anisotropic_layer, zenith, zenith_node_lanes};
+use crate::models::tabulated::{self, zenith, zenith_node_lanes};
 use crate::models::{Inputs, Model, Proposal, BLOCK};
 use crate::stack::Stack;
 use crate::tables::adding_doubling::{Cells, NODES, N_THETA};
@@ -59,7 +59,7 @@ pub fn apply(on: bool, model: Box<dyn Model>, stack: &Stack) -> Result<Box<dyn M
 
 /// `model` fitted to the transport of `stack` (module doc); an anisotropic stack's model is returned as it is.
 pub fn fit(model: Box<dyn Model>, stack: &Stack) -> Result<Box<dyn Model>> {
-    if anisotropic_layer(stack).is_some() {
+    if crate::tables::anisotropic::is_anisotropic(stack, crate::models::reference_surface()) {
         return Ok(model);
     }
     let exact = tabulated::prepare(stack, crate::models::reference_surface())?;
