@@ -227,10 +227,8 @@ def test_the_held_out_population_in_float32():
     wi, wo = _directions(5_000, 4)
     worst = 0.0
     for _, stack in population(8, seed=2):
-        try:
-            stack.eval([0, 0, 1.0], [0, 0, 1.0], "tabulated")
-        except ValueError:
-            continue  # an anisotropic stack, which tabulated refuses
+        if any(x["roughness"][0] != x["roughness"][1] for x in stack._resolve(None) if x["kind"] != "diffuse"):
+            continue  # tabulated evaluates an anisotropic stack in float64 only (its float32 result is that, rounded)
         worst = max(worst, _compare(stack, "tabulated", wi, wo))
     assert worst <= 2e-5
 

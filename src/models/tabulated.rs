@@ -50,7 +50,7 @@ pub const INFO: ModelInfo = ModelInfo {
     summary: "lamina's near-exact model: the stack solved by Fourier adding-doubling once, then interpolated",
     options: &[DISTRIBUTION, G2] as &[OptionSpec],
     inputs: &[] as &[InputSpec],
-    properties: Properties { reciprocal: true, energy_conserving: true, anisotropic: false, spectral: true },
+    properties: Properties { reciprocal: true, energy_conserving: true, anisotropic: true, spectral: true },
     gradients: &Field::NAMES,
     prepare: |stack, args| prepare(stack, microsurface(args)?),
     #[cfg(feature = "gpu")]
@@ -641,12 +641,13 @@ pub mod gpu {
                 ["distribution", "g2"].iter().filter_map(|k| Some((k.to_string(), args.get(k)?.clone()))).collect();
             return (microfacet::gpu::HALF.kernel)(stack, &Args::parse(&microfacet::INFO, &given)?);
         }
-        let p = tabulate_stack(stack, microsurface(args)?)?;
-        if p.anisotropic {
+        let surface = microsurface(args)?;
+        if crate::tables::anisotropic::is_anisotropic(stack, surface) {
             return value_error(
                 "model 'tabulated' on the GPU takes isotropic stacks; evaluate anisotropic ones on the CPU (device='cpu')",
             );
         }
+        let p = tabulate_stack(stack, surface)?;
         let smooth = Microfacet::new(Distribution::Ggx, 0.0, 0.0, 0.0);
         let mut values: Vec<f32> = p.eta.iter().map(|&e| e as f32).collect();
         let lobes_at = values.len();

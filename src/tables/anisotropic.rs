@@ -649,10 +649,12 @@ pub fn coordinates(wi: DVec3, wo: DVec3) -> Option<At> {
 fn corners(at: &At, channels: usize) -> impl Iterator<Item = (usize, f32)> + '_ {
     let [i, a, o, b] = at.node;
     let [fi, fa, fo, fb] = at.w;
+    // φo's upper node, periodic (without a division per corner).
+    let b1 = if b + 1 == NA { 0 } else { b + 1 };
     (0..16).map(move |c| {
         let (di, da, dj, db) = (c >> 3, (c >> 2) & 1, (c >> 1) & 1, c & 1);
         let w = |d: usize, f: f32| if d == 1 { f } else { 1.0 - f };
-        let k = index(i + di, a + da, o + dj, (b + db) % NA, channels, 0);
+        let k = index(i + di, a + da, o + dj, if db == 1 { b1 } else { b }, channels, 0);
         (k, w(di, fi) * w(da, fa) * w(dj, fo) * w(db, fb))
     })
 }
