@@ -189,14 +189,7 @@ pub(super) fn solve_one_minus<T: Real>(a: &[T], b: &[T]) -> Mat<T> {
         });
     }
     for col in 0..n {
-        let p =
-            (col..n).max_by(|&i, &k| m[i * n + col].value().abs().total_cmp(&m[k * n + col].value().abs())).unwrap();
-        if p != col {
-            for k in 0..n {
-                m.swap(p * n + k, col * n + k);
-                x.swap(p * n + k, col * n + k);
-            }
-        }
+        pivot(&mut m, &mut x, n, col);
         let d = m[col * n + col];
         for i in col + 1..n {
             let f = m[i * n + col] / d;
@@ -218,6 +211,19 @@ pub(super) fn solve_one_minus<T: Real>(a: &[T], b: &[T]) -> Mat<T> {
         }
     }
     x
+}
+
+/// Partial pivoting: swaps into row `col` of the n × n matrix m, and of x, the row at or below it with the largest
+/// |m[·][col]|.
+pub(super) fn pivot<T: Real>(m: &mut [T], x: &mut [T], n: usize, col: usize) {
+    let size = |i: usize| m[i * n + col].value().abs();
+    let p = (col..n).max_by(|&i, &k| size(i).total_cmp(&size(k))).unwrap_or(col);
+    if p != col {
+        for k in 0..n {
+            m.swap(p * n + k, col * n + k);
+            x.swap(p * n + k, col * n + k);
+        }
+    }
 }
 
 /// The operator of a boundary (or a thin slab's scattering) with kernel f(w_light, w_view): light arrives on the

@@ -357,13 +357,7 @@ fn solve_one_minus(a: &[f64], b: &[f64]) -> Mat {
         let k1 = (k0 + NB).min(n);
         // The panel: columns k0..k1 factored, rows swapped whole (in m and x).
         for col in k0..k1 {
-            let p = (col..n).max_by(|&i, &k| m[i * n + col].abs().total_cmp(&m[k * n + col].abs())).unwrap_or(col);
-            if p != col {
-                for k in 0..n {
-                    m.swap(p * n + k, col * n + k);
-                    x.swap(p * n + k, col * n + k);
-                }
-            }
+            iso::pivot(&mut m, &mut x, n, col);
             let d = m[col * n + col];
             for i in col + 1..n {
                 let l = m[i * n + col] / d;
