@@ -877,7 +877,7 @@ def tabulated_section():
         "keeps both azimuths (tables/anisotropic.rs): 32 zenith cells × 96 azimuth bins, split into the two classes "
         "of radiance even and odd under a half turn (which no microfacet boundary mixes), each solved densely; "
         "anisotropic boundaries projected on the grid, isotropic ones and slabs coarsened from the isotropic solver; "
-        "tabulated at 33² zenith nodes × 49 × 96 azimuths (61 MiB for RGB) and interpolated at 16 corners. Its own "
+        "tabulated at 33² zenith nodes × 49 × 96 azimuths (58.6 MiB for RGB) and interpolated at 16 corners. Its own "
         "exact cases (models/tabulated.rs tests): isotropic stacks through it within 0.02–0.84% of the isotropic "
         "solver, an index-matched coat over an anisotropic conductor (α (0.4, 0.15)) within 0.7–2.2% of the "
         "conductor at θ ≤ 60° (5.0% at 80°), a stack turned by three bins equal to the stack seen from turned "

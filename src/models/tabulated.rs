@@ -17,7 +17,7 @@
 //! A table holds (N_THETA + 1)² N_PHI f32 per channel, each reciprocal pair once (0.81 MiB for RGB). Anisotropic
 //! stacks (Yamaguchi et al. 2019: anisotropic roughness, a tangent angle per layer) are solved on a grid that keeps
 //! both azimuths (tables/anisotropic.rs: 32 zenith cells × 96 azimuth bins) and tabulated at 33² zenith nodes × 49
-//! azimuths of wi × 96 of wo (61 MiB for RGB), interpolated at 16 corners in float64 (no float32 lanes, gradients or
+//! azimuths of wi × 96 of wo (58.6 MiB for RGB), interpolated at 16 corners in float64 (no float32 lanes, gradients or
 //! GPU kernel yet: the GPU and the gradient raise a ValueError). Sampling: the top's visible normals and the inner rough
 //! boundaries' lobes (each at least as rough as the layers above it), weighted by their energies, and the cosine.
 //! Below a smooth top, the mirror reflections of smooth boundaries seen through smooth ones (a clear coat over a
