@@ -632,8 +632,10 @@ pub fn coordinates(wi: DVec3, wo: DVec3) -> Option<At> {
     }
     let (s, t) = (phi_i / DPHI, phi_o / DPHI);
     let (a, b) = ((s as usize).min(HALF - 1), (t as usize).min(NA - 1));
-    let (i, fi) = super::node(crate::models::tabulated::zenith(wi.z), NODES);
-    let (o, fo) = super::node(crate::models::tabulated::zenith(wo.z), NODES);
+    // x = √(1 − cos θ), as the isotropic table (models::tabulated::zenith).
+    let zenith = |z: f64| (1.0 - z).max(0.0).sqrt();
+    let (i, fi) = super::node(zenith(wi.z), NODES);
+    let (o, fo) = super::node(zenith(wo.z), NODES);
     let (fa, fb) = ((s - a as f64).clamp(0.0, 1.0), (t - b as f64).clamp(0.0, 1.0));
     Some(At { node: [i, a, o, b], w: [fi as f32, fa as f32, fo as f32, fb as f32] })
 }
