@@ -9,7 +9,7 @@ VPY := $(VENV)/bin/python
 # fails without one unless LAMINA_SKIP_GPU=1 says to skip it.
 LLVM = DRJIT_LIBLLVM_PATH="$$($(PY) tests/libllvm.py)"
 
-.PHONY: demo test lint wheel-test develop venv test-deps system-deps rust-test py-test bench validation reference reliability fuzz readme chart population atlas oat notebooks fit clean
+.PHONY: demo test lint wheel-test develop venv test-deps system-deps rust-test py-test bench validation reference reliability fuzz readme chart population anisotropic atlas oat notebooks fit clean
 
 $(VPY):
 	$(PY) -m venv $(VENV)
@@ -111,6 +111,11 @@ fuzz: develop
 # docs/population.json, python/lamina/data/choose.json and docs/choose.md.
 population: develop
 	$(VPY) scripts/population.py
+
+# `tabulated` on 50 anisotropic stacks against the reference: docs/anisotropic.md and .png (about 12 minutes on 2
+# cores the first time; references and tables cached).
+anisotropic: develop
+	$(VPY) scripts/anisotropic_population.py
 
 # The failure atlas: docs/atlas.md, docs/atlas/*.png and docs/atlas.json (about 10 minutes on 2 cores; resumes).
 atlas: develop

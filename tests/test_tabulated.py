@@ -45,6 +45,16 @@ def test_the_suite_mean_meets_the_goal(suite_reference):
     assert np.mean(errors) <= 0.02, errors
 
 
+def test_the_anisotropic_coats_albedo_meets_the_goal(suite_reference_albedo):
+    """The issue's goal for anisotropic stacks: the albedo within 0.01 of the reference's (200k paths per angle,
+    green). Measured: within 0.0007 at θi ≤ 80° (the reference's standard error 0.00085) and 0.0040 at 87° (Belcour
+    +0.04 to +0.24, Steinberg −0.15 to −0.21)."""
+    wi, reference, se = suite_reference_albedo("anisotropic-coat-metal")
+    signed = suite("anisotropic-coat-metal").albedo(wi, "tabulated")[:, 1] - reference
+    assert np.all(np.abs(signed) <= 0.01), signed
+    assert np.all(np.abs(signed[LOW]) <= 3 * se[LOW]), (signed, se)
+
+
 def test_anisotropic_stacks_are_tabulated_within_their_budget(tmp_path):
     """Yamaguchi's case (anisotropic roughness, a tangent angle per layer) is solved on a grid of both azimuths: the
     issue's budget of 64 MiB per RGB table; no gradients (the isotropic solve's Duals) and no GPU kernel yet, each a

@@ -17,8 +17,9 @@
 //! A table holds (N_THETA + 1)² N_PHI f32 per channel, each reciprocal pair once (0.81 MiB for RGB). Anisotropic
 //! stacks (Yamaguchi et al. 2019: anisotropic roughness, a tangent angle per layer) are solved on a grid that keeps
 //! both azimuths (tables/anisotropic.rs: 32 zenith cells × 96 azimuth bins) and tabulated at 33² zenith nodes × 49
-//! azimuths of wi × 96 of wo (58.6 MiB for RGB), interpolated at 16 corners in float64 (no float32 lanes, gradients or
-//! GPU kernel yet: the GPU and the gradient raise a ValueError). Sampling: the top's visible normals and the inner rough
+//! azimuths of wi × 96 of wo (58.6 MiB for RGB), interpolated at 16 corners (eight rows of two adjacent records, a
+//! block's rows prefetched; float32 lanes compute the coordinates in float64; no gradients or GPU kernel yet: the GPU
+//! and the gradient raise a ValueError). Sampling: the top's visible normals and the inner rough
 //! boundaries' lobes (each at least as rough as the layers above it), weighted by their energies, and the cosine.
 //! Below a smooth top, the mirror reflections of smooth boundaries seen through smooth ones (a clear coat over a
 //! smooth interface or a polished metal) are Dirac lobes that cells would blur: the table leaves them out and
@@ -189,13 +190,14 @@ impl Prepared {
         }
         if self.anisotropic {
             // The coordinates of the block, every corner requested, then the corners read.
-            let at: Vec<Option<anisotropic::At>> = (0..n)
-                .map(|r| anisotropic::coordinates(DVec3::new(ix[r], iy[r], iz[r]), DVec3::new(ox[r], oy[r], oz[r])))
-                .collect();
-            at.iter().flatten().for_each(|at| anisotropic::prefetch(&self.table, at, ch));
-            for (at, out) in at.iter().zip(out.chunks_exact_mut(ch)) {
+            let mut at = [None; BLOCK];
+            for (r, at) in at[..n].iter_mut().enumerate() {
+                *at = anisotropic::coordinates(DVec3::new(ix[r], iy[r], iz[r]), DVec3::new(ox[r], oy[r], oz[r]));
+            }
+            at[..n].iter().flatten().for_each(|at| anisotropic::prefetch(&self.table, at, ch));
+            for (at, out) in at[..n].iter().zip(out.chunks_exact_mut(ch)) {
                 if let Some(at) = at {
-                    anisotropic::interpolate_at(&self.table, at, |c, v| out[c] += v as f64, ch);
+                    self.interpolate_anisotropic(at, |c, v| out[c] += v as f64);
                 }
             }
             return;
@@ -238,6 +240,17 @@ impl Prepared {
 }
 
 impl Prepared {
+    /// An anisotropic table's interpolation at `at`, channel by channel into `add(c, f)` (one and three channels
+    /// with their records' lengths known to the compiler).
+    #[inline(always)]
+    fn interpolate_anisotropic(&self, at: &anisotropic::At, add: impl FnMut(usize, f32)) {
+        match self.eta.len() {
+            1 => anisotropic::interpolate_at::<1>(&self.table, at, 1, add),
+            3 => anisotropic::interpolate_at::<3>(&self.table, at, 3, add),
+            ch => anisotropic::interpolate_at::<0>(&self.table, at, ch, add),
+        }
+    }
+
     /// The table's trilinear interpolation in float32 at the lower nodes `at` (θi, θo, φ) with the upper nodes'
     /// weights `w`: channels c0..c0 + C.
     #[inline(always)]
@@ -308,6 +321,22 @@ impl engine::Kernel for Lanes<'_> {
             }
             None => out.fill(zero),
         }
+        if self.p.anisotropic {
+            // The coordinates lane by lane in float64 (`anisotropic::coordinates`, as the float64 path computes
+            // them), every lane's corners requested, then read.
+            let mut at = [None; LANES];
+            for (l, at) in at.iter_mut().enumerate() {
+                let lane = |w: V3| DVec3::new(w.x.0[l] as f64, w.y.0[l] as f64, w.z.0[l] as f64);
+                *at = anisotropic::coordinates(lane(wi), lane(wo));
+            }
+            at.iter().flatten().for_each(|at| anisotropic::prefetch(&self.p.table, at, out.len()));
+            for (l, at) in at.iter().enumerate() {
+                if let Some(at) = at {
+                    self.p.interpolate_anisotropic(at, |c, v| out[c].0[l] += v);
+                }
+            }
+            return;
+        }
         // The coordinates in forms without cancellation, as float32 needs them near their ends: the zenith
         // coordinate's node from its nearer end (`zenith_node_lanes`), and the azimuth between the travel
         // directions y = sin(φ/2) = √((1 − cos φ)/2) with cos φ = −cos(φi − φo), as |âi + âo| / 2 for the unit
@@ -362,9 +391,6 @@ impl Model for Prepared {
     }
 
     fn eval_f32(&self, wi: Rows, wo: Rows, fit: Option<&FitLanes>, out: &mut [f32]) -> bool {
-        if self.anisotropic {
-            return false;
-        }
         let top = match &self.top {
             Some(mf) => match Ggx::new(mf, self.g2) {
                 Some(ggx) => Some(ggx),
