@@ -19,6 +19,7 @@ import colour  # noqa: E402
 import lamina  # noqa: E402
 import mitsuba as mi  # noqa: E402
 from conftest import MI_RGB, mitsuba_f, random_hemisphere, unit  # noqa: E402
+from lamina._reference import lobe_noise  # noqa: E402
 from test_mitsuba import near_lobe_pairs, refract  # noqa: E402
 
 
@@ -351,7 +352,7 @@ def suite_table(model, **options):
         a_m = stack.albedo(wi[:, 0, :], model, **options)[:, 1]
         SUITE.setdefault(model, {})[name] = {
             "lobe": lobe.tolist(),
-            "lobe_floor": (np.sqrt(2 / np.pi) * se.sum(axis=(1, 2)) / np.abs(f).sum(axis=(1, 2))).tolist(),
+            "lobe_floor": lobe_noise(se, f).tolist(),
             "albedo": (a_m - reference_albedo(name)).tolist(),
             "albedo_se": suite_reference_albedo(name)[2][:, 1].tolist(),
         }
@@ -856,8 +857,7 @@ def tabulated_section():
             err = atlas.lobe_errors(stack.eval(wi, wo, "tabulated"), f)
         except ValueError:
             return None
-        noise = np.sqrt(2 / np.pi) * se.sum(axis=(1, 2)) / np.abs(f).sum(axis=(1, 2))
-        return err, noise
+        return err, lobe_noise(se, f)
 
     out = [
         "",

@@ -38,6 +38,12 @@ def lobe_errors(f: np.ndarray, f_ref: np.ndarray) -> np.ndarray:
     return np.abs(f - f_ref).sum(axis=(1, 2)) / np.maximum(np.abs(f_ref).sum(axis=(1, 2)), 1e-300)
 
 
+def lobe_noise(se: np.ndarray, f_ref: np.ndarray) -> np.ndarray:
+    """The reference's own expected lobe error per θi row (what a perfect model shows against it): √(2/π) Σ SE /
+    Σ|f_ref| over directions and channels (the mean absolute value of a normal error is √(2/π) σ)."""
+    return np.sqrt(2 / np.pi) * se.sum(axis=(1, 2)) / np.maximum(np.abs(f_ref).sum(axis=(1, 2)), 1e-300)
+
+
 def _progress(total: int, progress):
     if progress is False or (progress is None and total < 4 * CHUNK):
         return None

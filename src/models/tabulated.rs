@@ -189,17 +189,12 @@ impl Prepared {
             }
         }
         if self.anisotropic {
-            // The coordinates of the block, every corner requested, then the corners read.
+            // The coordinates of the block, then its rows interpolated.
             let mut at = [None; BLOCK];
             for (r, at) in at[..n].iter_mut().enumerate() {
                 *at = anisotropic::coordinates(DVec3::new(ix[r], iy[r], iz[r]), DVec3::new(ox[r], oy[r], oz[r]));
             }
-            at[..n].iter().flatten().for_each(|at| anisotropic::prefetch(&self.table, at, ch));
-            for (at, out) in at[..n].iter().zip(out.chunks_exact_mut(ch)) {
-                if let Some(at) = at {
-                    self.interpolate_anisotropic(at, |c, v| out[c] += v as f64);
-                }
-            }
+            self.interpolate_anisotropic(&at[..n], |r, c, v| out[r * ch + c] += v as f64);
             return;
         }
         // Table coordinates, in vector lanes: the node below each coordinate and the weight of the one above; rows
@@ -240,14 +235,21 @@ impl Prepared {
 }
 
 impl Prepared {
-    /// An anisotropic table's interpolation at `at`, channel by channel into `add(c, f)` (one and three channels
-    /// with their records' lengths known to the compiler).
+    /// An anisotropic table's interpolation at the coordinates `at` of a group of rows (None: below the horizon),
+    /// row by row and channel by channel into `add(r, c, f)`: every row's corners requested first, then read (one and
+    /// three channels with their records' lengths known to the compiler).
     #[inline(always)]
-    fn interpolate_anisotropic(&self, at: &anisotropic::At, add: impl FnMut(usize, f32)) {
-        match self.eta.len() {
-            1 => anisotropic::interpolate_at::<1>(&self.table, at, 1, add),
-            3 => anisotropic::interpolate_at::<3>(&self.table, at, 3, add),
-            ch => anisotropic::interpolate_at::<0>(&self.table, at, ch, add),
+    fn interpolate_anisotropic(&self, at: &[Option<anisotropic::At>], mut add: impl FnMut(usize, usize, f32)) {
+        let ch = self.eta.len();
+        at.iter().flatten().for_each(|at| anisotropic::prefetch(&self.table, at, ch));
+        for (r, at) in at.iter().enumerate() {
+            let Some(at) = at else { continue };
+            let add = |c: usize, f: f32| add(r, c, f);
+            match ch {
+                1 => anisotropic::interpolate_at::<1>(&self.table, at, 1, add),
+                3 => anisotropic::interpolate_at::<3>(&self.table, at, 3, add),
+                _ => anisotropic::interpolate_at::<0>(&self.table, at, ch, add),
+            }
         }
     }
 
@@ -323,18 +325,13 @@ impl engine::Kernel for Lanes<'_> {
         }
         if self.p.anisotropic {
             // The coordinates lane by lane in float64 (`anisotropic::coordinates`, as the float64 path computes
-            // them), every lane's corners requested, then read.
+            // them).
             let mut at = [None; LANES];
             for (l, at) in at.iter_mut().enumerate() {
                 let lane = |w: V3| DVec3::new(w.x.0[l] as f64, w.y.0[l] as f64, w.z.0[l] as f64);
                 *at = anisotropic::coordinates(lane(wi), lane(wo));
             }
-            at.iter().flatten().for_each(|at| anisotropic::prefetch(&self.p.table, at, out.len()));
-            for (l, at) in at.iter().enumerate() {
-                if let Some(at) = at {
-                    self.p.interpolate_anisotropic(at, |c, v| out[c].0[l] += v);
-                }
-            }
+            self.p.interpolate_anisotropic(&at, |l, c, v| out[c].0[l] += v);
             return;
         }
         // The coordinates in forms without cancellation, as float32 needs them near their ends: the zenith

@@ -705,7 +705,7 @@ pub fn prefetch(table: &[f32], at: &At, channels: usize) {
         // SAFETY: a prefetch reads nothing; the address is inside the table.
         unsafe {
             std::arch::x86_64::_mm_prefetch::<{ std::arch::x86_64::_MM_HINT_T0 }>(
-                table[row + at.node[3] * channels..].as_ptr() as *const i8,
+                table[row + columns(at, channels)[0].0..].as_ptr() as *const i8,
             )
         };
     }
