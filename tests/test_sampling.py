@@ -31,9 +31,13 @@ STACKS = {
         }
         for m in ("belcour", "steinberg", "weidlich_wilkie", "albedo_scaling")
     },
+    # Weidlich–Wilkie with GGX interfaces, which it samples in float32 lanes (its default, Beckmann, in float64).
+    "weidlich_wilkie_ggx": {"rough-coat-rough-copper": suite("rough-coat-rough-copper")},
     "tabulated": {name: suite(name) for name in ("rough-coat-rough-copper", "varnished-diffuse", "three-layer")},
 }
 CASES = [(m, name) for m, stacks in STACKS.items() for name in stacks]
+#: The model and options of each key of STACKS that is not a model's name.
+VARIANTS = {"weidlich_wilkie_ggx": ("weidlich_wilkie", {"distribution": "ggx"})}
 THETAS = (20.0, 65.0)
 
 
@@ -81,33 +85,43 @@ def _chi2_pvalue(observed, expected):
     return stats.chi2.sf(chi2, len(exp) - 1)
 
 
+#: The models that sample float32 inputs in lanes (models/common/mixture_lanes.rs and the rough conductor's own):
+#: their chi-square test runs in float32 too, against the same (float64) pdf.
+LANE_SAMPLERS = ("microfacet", "belcour", "steinberg", "weidlich_wilkie_ggx")
+DTYPES = [(m, name, np.float64) for m, name in CASES] + [
+    (m, name, np.float32) for m, name in CASES if m in LANE_SAMPLERS
+]
+
+
 @pytest.mark.parametrize("theta", THETAS)
-@pytest.mark.parametrize("model,name", CASES)
-def test_chi_square_of_sampled_directions_against_pdf(model, name, theta):
-    stack, wo = STACKS[model][name], _direction(theta)
+@pytest.mark.parametrize("model,name,dtype", DTYPES)
+def test_chi_square_of_sampled_directions_against_pdf(model, name, dtype, theta):
+    stack, wo = STACKS[model][name], _direction(theta).astype(dtype)
     # A seed per case that every run repeats (Python's hash of a string changes from process to process).
-    u = np.random.default_rng(zlib.crc32(f"{model} {name} {theta}".encode())).random((SAMPLES, 3))
-    wi, weight, pdf = stack.sample(wo, u, model)
+    u = np.random.default_rng(zlib.crc32(f"{model} {name} {theta}".encode())).random((SAMPLES, 3)).astype(dtype)
+    model, options = VARIANTS.get(model, (model, {}))
+    wi, weight, pdf = stack.sample(wo, u, model, **options)
     valid = pdf > 0
-    expected = _expected_fractions(stack, model, wo)
+    expected = _expected_fractions(stack, model, wo, **options)
     # The pdf integrates to the fraction of samples that stay above the horizon (binomial standard error, 5 sigma).
     frac, total = valid.mean(), expected.sum()
     assert abs(total - frac) < 5 * np.sqrt(frac * (1 - frac) / SAMPLES) + 2e-3, (total, frac)
     p = _chi2_pvalue(_histogram(wi, valid), expected / total * valid.sum())
     # Significance 0.01 split over every case of the module (Bonferroni), as Mitsuba's tests.
-    assert p > 0.01 / (len(CASES) * len(THETAS)), f"chi-square p = {p:.3g}"
+    assert p > 0.01 / (len(DTYPES) * len(THETAS)), f"chi-square p = {p:.3g}"
 
 
 @pytest.mark.parametrize("model,name", CASES)
 def test_weight_is_f_cos_over_pdf_and_pdf_matches(model, name):
     stack, wo = STACKS[model][name], _direction(40.0)
     u = np.random.default_rng(7).random((2000, 3))
-    wi, weight, pdf = stack.sample(wo, u, model)
+    model, options = VARIANTS.get(model, (model, {}))
+    wi, weight, pdf = stack.sample(wo, u, model, **options)
     valid = pdf > 0
     assert valid.mean() > 0.5
-    f = stack.eval(wi[valid], wo, model)
+    f = stack.eval(wi[valid], wo, model, **options)
     np.testing.assert_allclose(weight[valid], f * wi[valid, 2:3] / pdf[valid, None], rtol=1e-12, atol=0)
-    np.testing.assert_allclose(stack.pdf(wi[valid], wo, model), pdf[valid], rtol=1e-12)
+    np.testing.assert_allclose(stack.pdf(wi[valid], wo, model, **options), pdf[valid], rtol=1e-12)
     assert np.all(weight[~valid] == 0) and np.all(np.isfinite(weight)) and np.all(weight >= 0)
 
 

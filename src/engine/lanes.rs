@@ -9,7 +9,7 @@
 //! and once portably. `min`/`max` follow the x86 `minps`/`maxps` rule (the second operand when either
 //! is NaN), so that a clamp of a NaN gives the bound on every backend.
 
-use std::ops::{Add, BitAnd, Div, Mul, Neg, Not, Sub};
+use std::ops::{Add, BitAnd, BitOr, Div, Mul, Neg, Not, Sub};
 
 /// Lanes per `Floats`.
 pub const LANES: usize = 16;
@@ -206,6 +206,14 @@ impl BitAnd for Mask {
     }
 }
 
+impl BitOr for Mask {
+    type Output = Mask;
+    #[inline(always)]
+    fn bitor(self, b: Mask) -> Mask {
+        Mask(std::array::from_fn(|i| self.0[i] | b.0[i]))
+    }
+}
+
 impl Not for Mask {
     type Output = Mask;
     #[inline(always)]
@@ -217,6 +225,8 @@ impl Not for Mask {
 impl Mask {
     /// Every lane set.
     pub const ALL: Mask = Mask([u32::MAX; LANES]);
+    /// No lane set.
+    pub const NONE: Mask = Mask([0; LANES]);
 
     /// Whether any lane is set.
     #[inline(always)]
@@ -244,6 +254,12 @@ impl V3 {
     #[inline(always)]
     pub fn plus(self, b: V3) -> V3 {
         V3 { x: self.x + b.x, y: self.y + b.y, z: self.z + b.z }
+    }
+
+    /// a where m is set, else b, per lane.
+    #[inline(always)]
+    pub fn select(m: Mask, a: V3, b: V3) -> V3 {
+        V3 { x: Floats::select(m, a.x, b.x), y: Floats::select(m, a.y, b.y), z: Floats::select(m, a.z, b.z) }
     }
 
     /// The vector in the tangent frame rotated by the angle of cosine c and sine s about z (optics::to_tangent_frame).

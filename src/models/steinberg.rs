@@ -24,6 +24,7 @@
 //! The distribution is GGX (the tables are GGX). Sampling: the shared single-pass mixture (models/common/single_pass.rs).
 
 use super::common::block::simd_columns;
+use super::common::mixture_lanes::{self, LaneMixture, Proposals};
 use super::common::options::{
     choice, variant, CLAMP_ROUGHNESS, CONDUCTOR_INTERREFLECTION, ETA2, FRESNEL, G2, INTERREFLECTION,
     MICROFACET_TRANSMISSION, TRANSPORT_FIT,
@@ -216,6 +217,13 @@ impl engine::Kernel for Lanes {
     }
 }
 
+impl Proposals for Lanes {
+    #[inline(always)]
+    fn proposals(&self, wo: V3) -> LaneMixture {
+        self.walk.proposals(wo)
+    }
+}
+
 impl Transport for Prepared {
     /// Cook–Torrance GGX lobe (Cook & Torrance 1982 with the GGX D and Smith G2 of Walter et al. 2007).
     #[inline(always)]
@@ -262,6 +270,11 @@ impl Model for Prepared {
 
     fn eval_f32(&self, wi: Rows, wo: Rows, fit: Option<&FitLanes>, out: &mut [f32]) -> bool {
         self.lanes.as_ref().is_some_and(|k| engine::eval(k, fit, self.channels, wi, wo, out))
+    }
+
+    fn sample_f32(&self, wo: Rows, u: Rows, out: &mut [f32]) -> bool {
+        let lanes = self.lanes.as_ref().filter(|k| k.walk.samples());
+        lanes.is_some_and(|k| mixture_lanes::sample(k, self.channels, wo, u, out))
     }
 
     fn proposals(&self, wo: DVec3) -> Vec<(f64, Proposal)> {

@@ -32,6 +32,7 @@
 //! single-pass mixture (models/common/single_pass.rs).
 
 use super::common::block::{eval_rows, simd_columns, BLOCK};
+use super::common::mixture_lanes::{self, LaneMixture, Proposals};
 use super::common::options::{
     distribution, flag, g2, number, variant, OptionKind, CLAMP_ROUGHNESS, CONDUCTOR_INTERREFLECTION, ETA2, FRESNEL,
     INTERREFLECTION, TRANSPORT_FIT,
@@ -227,6 +228,13 @@ impl engine::Kernel for Lanes {
     }
 }
 
+impl Proposals for Lanes {
+    #[inline(always)]
+    fn proposals(&self, wo: V3) -> LaneMixture {
+        self.walk.proposals(wo)
+    }
+}
+
 impl Transport for Prepared {
     /// Torrance–Sparrow lobe D G / (4 cos θi cos θo); the precomputed form takes D from Elek's table (isotropic
     /// Beckmann interfaces; others keep the analytic D).
@@ -296,6 +304,11 @@ impl Model for Prepared {
 
     fn eval_f32(&self, wi: Rows, wo: Rows, fit: Option<&FitLanes>, out: &mut [f32]) -> bool {
         self.lanes.as_ref().is_some_and(|k| engine::eval(k, fit, self.channels, wi, wo, out))
+    }
+
+    fn sample_f32(&self, wo: Rows, u: Rows, out: &mut [f32]) -> bool {
+        let lanes = self.lanes.as_ref().filter(|k| k.walk.samples());
+        lanes.is_some_and(|k| mixture_lanes::sample(k, self.channels, wo, u, out))
     }
 
     fn check_inputs(&self, given: &[bool]) -> Result<()> {

@@ -5,7 +5,7 @@
 
 use super::distribution::{Distribution, G2Form, Microfacet};
 use super::fresnel::FresnelForm;
-use crate::engine::{Floats, V3};
+use crate::engine::{Floats, Mask, V3};
 
 /// A conductor's relative complex IOR η + iκ, as the lanes' Fresnel terms take it.
 #[derive(Clone, Copy, Debug)]
@@ -187,6 +187,31 @@ impl Ggx {
     }
 }
 
+impl Ggx {
+    /// a's roughness and frame where m is set, else b's, per lane (a mixture's chosen lobe); both of one G2.
+    #[inline(always)]
+    pub fn select(m: Mask, a: &Ggx, b: &Ggx) -> Ggx {
+        let s = |x: Floats, y: Floats| Floats::select(m, x, y);
+        let unrotated = (Floats::splat(1.0), Floats::splat(0.0));
+        let frame = match (a.frame, b.frame) {
+            (None, None) => None,
+            (fa, fb) => {
+                let ((ca, sa), (cb, sb)) = (fa.unwrap_or(unrotated), fb.unwrap_or(unrotated));
+                Some((s(ca, cb), s(sa, sb)))
+            }
+        };
+        Ggx {
+            ax2: s(a.ax2, b.ax2),
+            ay2: s(a.ay2, b.ay2),
+            inv_ax2: s(a.inv_ax2, b.inv_ax2),
+            inv_ay2: s(a.inv_ay2, b.inv_ay2),
+            norm: s(a.norm, b.norm),
+            frame,
+            height_correlated: a.height_correlated,
+        }
+    }
+}
+
 /// σ = √(cos² θ + αx² x² + αy² y²) of a direction in the interface's frame: cos θ (1 + 2Λ) for GGX (Heitz 2014
 /// eq. 72). (Functions rather than closures in the lanes' hot paths: a closure may be compiled outside the row
 /// loop's instruction set.)
@@ -265,6 +290,31 @@ pub fn ggx_sample_reflection(g: &Ggx, wo: V3, u1: Floats, u2: Floats) -> (V3, Fl
         None => wi,
     };
     (wi, pdf)
+}
+
+/// The pdf per unit solid angle of wi under GGX's visible-normal sampling for wo, D_wo(h) / (4 wo·h) =
+/// D(h) / (2 (cos θo + σo)) (mixture::lobe_pdf; Walter et al. 2007 eq. 14, Heitz 2018 eq. 3), D from h = wi + wo
+/// unnormalised as in `ggx_reflection`; for wo above the surface, and wi above it too (the mixture's pdf is 0
+/// elsewhere).
+#[inline(always)]
+pub fn ggx_pdf_reflection(g: &Ggx, wi: V3, wo: V3) -> Floats {
+    let h = wi.plus(wo);
+    let (wo, h) = match g.frame {
+        Some((c, s)) => (wo.rotate(c, s), h.rotate(c, s)),
+        None => (wo, h),
+    };
+    let h2 = h.dot(h);
+    let s = (h.x * h.x).mul_add(g.inv_ax2, (h.y * h.y).mul_add(g.inv_ay2, h.z * h.z));
+    h2 * h2 * g.norm / (s * s * 2.0 * (wo.z + smith_sigma(g, wo)))
+}
+
+/// A cosine-weighted direction on the upper hemisphere from two uniform numbers (sampling::cosine_hemisphere: Malley's
+/// method, r = √u1, φ = 2π u2).
+#[inline(always)]
+pub fn cosine_hemisphere(u1: Floats, u2: Floats) -> V3 {
+    let r = u1.sqrt();
+    let (sin, cos) = u2.sincos_2pi();
+    V3 { x: r * cos, y: r * sin, z: (1.0 - u1).max(Floats::splat(0.0)).sqrt() }
 }
 
 /// Dielectric transmittance 1 − F at cos θ ≥ 0 (fresnel::dielectric_transmittance), without cancellation at grazing

@@ -5,6 +5,7 @@
 use super::table::LobeTable;
 use super::Prepared;
 use crate::engine::{self, Floats, Mask, Rows, LANES, V3};
+use crate::models::common::mixture_lanes::{self, mean, LaneMixture, Proposals, MAX_TERMS};
 use crate::models::FitLanes;
 use crate::optics::distribution::{G2Form, MIN_ALPHA};
 use crate::optics::lanes::{ggx_reflection, Ggx};
@@ -25,6 +26,8 @@ pub(super) struct TableF32 {
     t_up: Vec<f32>,
     /// ρ / (π (1 − ρ R̄↑) η²) per channel: the diffuse base's factor on T↓ T↑; empty without a base.
     diffuse: Vec<f32>,
+    /// ρ / (1 − ρ R̄↑) per channel: the base's factor on T↑² in the sampling mixture's cosine weight.
+    diffuse_proposal: Vec<f32>,
 }
 
 impl TableF32 {
@@ -35,6 +38,9 @@ impl TableF32 {
             let scale = |(rho, r_up): (&f64, &f64)| rho / (std::f64::consts::PI * (1.0 - rho * r_up) * d.eta * d.eta);
             d.albedo.iter().zip(&d.r_up).map(scale).map(|x| x as f32).collect()
         });
+        let diffuse_proposal = p.diffuse.as_ref().map_or(vec![], |d| {
+            d.albedo.iter().zip(&d.r_up).map(|(rho, r_up)| (rho / (1.0 - rho * r_up)) as f32).collect()
+        });
         (t.width <= MAX_WIDTH && p.channels <= MAX_WIDTH).then(|| TableF32 {
             lobes: t.lobes,
             nodes: t.nodes,
@@ -44,6 +50,7 @@ impl TableF32 {
             t_down: f32s(&t.t_down),
             t_up: f32s(&t.t_up),
             diffuse,
+            diffuse_proposal,
         })
     }
 }
@@ -119,15 +126,27 @@ pub(super) struct Lanes<'a> {
     height_correlated: bool,
 }
 
-/// f of float32 rows by the lanes, if the stack has a float32 table and a Smith G2 (module comment).
-pub(super) fn eval(p: &Prepared, wi: Rows, wo: Rows, fit: Option<&FitLanes>, out: &mut [f32]) -> bool {
-    let Some(t) = &p.table_f32 else { return false };
-    if p.opts.g2 == G2Form::VCavity {
-        return false;
-    }
+/// The kernel of `p`, if it has a float32 table and a Smith G2 (module comment).
+fn kernel(p: &Prepared) -> Option<Lanes<'_>> {
+    let t = p.table_f32.as_ref()?;
     let height_correlated = p.opts.g2 == G2Form::HeightCorrelated;
-    let kernel = Lanes { t, channels: p.channels, symmetric: p.opts.symmetric, height_correlated };
-    engine::eval(&kernel, fit, p.channels, wi, wo, out)
+    (p.opts.g2 != G2Form::VCavity).then_some(Lanes {
+        t,
+        channels: p.channels,
+        symmetric: p.opts.symmetric,
+        height_correlated,
+    })
+}
+
+/// f of float32 rows by the lanes, where `kernel` covers the stack.
+pub(super) fn eval(p: &Prepared, wi: Rows, wo: Rows, fit: Option<&FitLanes>, out: &mut [f32]) -> bool {
+    kernel(p).is_some_and(|k| engine::eval(&k, fit, p.channels, wi, wo, out))
+}
+
+/// `Stack.sample`'s rows of float32 (wo, u) by the lanes' mixture (`Prepared::proposals` in lanes).
+pub(super) fn sample(p: &Prepared, wo: Rows, u: Rows, out: &mut [f32]) -> bool {
+    let fits = |k: &Lanes| k.t.lobes < MAX_TERMS;
+    kernel(p).filter(fits).is_some_and(|k| mixture_lanes::sample(&k, p.channels, wo, u, out))
 }
 
 impl engine::Kernel for Lanes<'_> {
@@ -138,19 +157,9 @@ impl engine::Kernel for Lanes<'_> {
         let cos_theta = if self.symmetric { symmetric_cosine(wi, wo) } else { wo.z };
         let at = corners(t, cos_theta, wo.x, wo.y);
         for k in 0..t.lobes {
-            let values: [Floats; MAX_WIDTH] = interpolate(&at, &t.record, t.lobes * t.width, k * t.width, t.width);
-            let lobe = &values[..t.width];
-            // The roughness per lane (the anisotropic tables' roughness matrix eigen-decomposed), the lobe's shape,
-            // its energies: a lobe of roughness 0 is a Dirac delta, not part of f.
-            let (ax, ay, frame, energy) = if t.azimuths > 1 {
-                let (ax, ay, cos, sin) = eigen_frame(lobe[0], lobe[1], lobe[2]);
-                (ax, ay, Some((cos, sin)), &lobe[3..])
-            } else {
-                (lobe[0], lobe[0], None, &lobe[1..])
-            };
-            let smooth = ax.le(zero) & ay.le(zero);
-            let min = Floats::splat(MIN_ALPHA as f32);
-            let ggx = Ggx::lanes(ax.max(min), ay.max(min), frame, self.height_correlated);
+            let values = self.record(&at, k);
+            let (ggx, smooth, energy) = self.lobe(&values);
+            // A lobe of roughness 0 is a Dirac delta, not part of f.
             let shape = Floats::select(smooth, zero, ggx_reflection(&ggx, wi, wo).0);
             for (o, e) in out.iter_mut().zip(energy) {
                 *o = e.mul_add(shape, *o);
@@ -167,6 +176,57 @@ impl engine::Kernel for Lanes<'_> {
                 *o = *o + Floats::and(above, Floats::splat(t.diffuse[ch]) * down[ch] * up[ch]);
             }
         }
+    }
+}
+
+impl Lanes<'_> {
+    /// Lobe k's record interpolated at the corners `at`.
+    #[inline(always)]
+    fn record(&self, at: &Corners, k: usize) -> [Floats; MAX_WIDTH] {
+        let t = self.t;
+        interpolate(at, &t.record, t.lobes * t.width, k * t.width, t.width)
+    }
+
+    /// A lobe record's GGX (the anisotropic tables' roughness matrix eigen-decomposed per lane), where its roughness is
+    /// 0 (a Dirac delta), and its energies per channel.
+    #[inline(always)]
+    fn lobe<'v>(&self, values: &'v [Floats; MAX_WIDTH]) -> (Ggx, Mask, &'v [Floats]) {
+        let lobe = &values[..self.t.width];
+        let (ax, ay, frame, energy) = if self.t.azimuths > 1 {
+            let (ax, ay, cos, sin) = eigen_frame(lobe[0], lobe[1], lobe[2]);
+            (ax, ay, Some((cos, sin)), &lobe[3..])
+        } else {
+            (lobe[0], lobe[0], None, &lobe[1..])
+        };
+        let zero = Floats::splat(0.0);
+        let min = Floats::splat(MIN_ALPHA as f32);
+        (Ggx::lanes(ax.max(min), ay.max(min), frame, self.height_correlated), ax.le(zero) & ay.le(zero), energy)
+    }
+}
+
+/// `Prepared::proposals` in lanes: each rough lobe at the viewing direction weighted by its mean energy, then the
+/// diffuse base by its mean ρ T↑² / (1 − ρ R̄↑).
+impl Proposals for Lanes<'_> {
+    #[inline(always)]
+    fn proposals(&self, wo: V3) -> LaneMixture {
+        let (t, zero) = (self.t, Floats::splat(0.0));
+        let mut mix = LaneMixture::new();
+        let at = corners(t, wo.z, wo.x, wo.y);
+        for k in 0..t.lobes {
+            let values = self.record(&at, k);
+            let (ggx, smooth, energy) = self.lobe(&values);
+            mix.push(Floats::select(smooth, zero, mean(energy)), Some(ggx));
+        }
+        if !t.diffuse.is_empty() {
+            let c = self.channels;
+            let up: [Floats; MAX_WIDTH] = interpolate(&at, &t.t_up, c, 0, c);
+            let mut weight = [zero; MAX_WIDTH];
+            for ((w, &u), &d) in weight.iter_mut().zip(&up).zip(&t.diffuse_proposal) {
+                *w = u * u * d;
+            }
+            mix.push(mean(&weight[..c]), None);
+        }
+        mix
     }
 }
 

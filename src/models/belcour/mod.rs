@@ -307,6 +307,10 @@ impl Model for Prepared {
         lanes::eval(self, wi, wo, fit, out)
     }
 
+    fn sample_f32(&self, wo: Rows, u: Rows, out: &mut [f32]) -> bool {
+        lanes::sample(self, wo, u, out)
+    }
+
     fn gradient(&self, seeds: &[Seed], n_params: usize) -> Result<Gradient<'_>> {
         super::dual_width!(n_params, gradient(self, seeds))
     }

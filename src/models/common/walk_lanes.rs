@@ -5,10 +5,12 @@
 //! The same arithmetic as `Walk::eval_group`, for the stacks the lanes cover (`LaneWalk::new`); the others stay
 //! on the float64 path.
 
+use super::mixture_lanes::{mean, LaneMixture, MAX_TERMS};
 use super::single_pass::{shared_eta, SpLayer, Walk};
 use crate::engine::{Floats, Mask, V3};
+use crate::optics::distribution::G2Form;
 use crate::optics::fresnel::FresnelForm;
-use crate::optics::lanes::{conductor, dielectric, sin_theta, ConductorIor, Lobe};
+use crate::optics::lanes::{conductor, dielectric, sin_theta, ConductorIor, Ggx, Lobe};
 
 /// Channels the lanes carry at the most: more (spectral stacks) run on the float64 path.
 pub const MAX_CHANNELS: usize = 8;
@@ -55,6 +57,9 @@ enum LaneLayer {
 pub struct LaneWalk {
     layers: Vec<LaneLayer>,
     channels: usize,
+    /// Per layer the GGX lobe its interface proposes to the sampling mixture (None: smooth, or no interface), where
+    /// the lanes sample the walk (`proposals`): None with a Beckmann interface or more terms than MAX_TERMS.
+    sampled: Option<Vec<Option<Ggx>>>,
 }
 
 impl LaneWalk {
@@ -104,7 +109,19 @@ impl LaneWalk {
             })
         };
         let layers = walk.layers.iter().map(lane_layer).collect::<Option<Vec<_>>>()?;
-        Some(LaneWalk { layers, channels })
+        // The mixture draws visible normals of the interface's distribution, whatever its G2.
+        let sampled = |layer: &SpLayer| match layer.interface() {
+            Some(iface) if !iface.mf.is_smooth() => Ggx::new(&iface.mf, G2Form::Separable).map(Some),
+            _ => Some(None),
+        };
+        let terms = |layer: &LaneLayer| match layer {
+            LaneLayer::Dielectric { lobe, .. } => 1 + lobe.is_some() as usize,
+            LaneLayer::Conductor { lobe, .. } => lobe.is_some() as usize,
+            LaneLayer::Diffuse { .. } => 1,
+        };
+        let sampled = walk.layers.iter().map(sampled).collect::<Option<Vec<_>>>();
+        let sampled = sampled.filter(|_| layers.iter().map(terms).sum::<usize>() < MAX_TERMS);
+        Some(LaneWalk { layers, channels, sampled })
     }
 
     /// f of LANES pairs into out[..channels] (single_pass::Walk::eval_group, one group of every channel).
@@ -149,6 +166,64 @@ impl LaneWalk {
                 }
             }
         }
+    }
+}
+
+impl LaneWalk {
+    /// Whether the lanes sample the walk (`proposals`).
+    pub fn samples(&self) -> bool {
+        self.sampled.is_some()
+    }
+
+    /// Walk::proposals in lanes (where `samples`): each rough interface's lobe and each diffuse term weighted by the
+    /// same estimates (Fresnel at the macro-surface cosine, Snell, Beer–Lambert both ways), then the defensive share.
+    #[inline(always)]
+    pub fn proposals(&self, wo: V3) -> LaneMixture {
+        let (zero, one) = (Floats::splat(0.0), Floats::splat(1.0));
+        let c = self.channels;
+        let mut mix = LaneMixture::new();
+        let Some(sampled) = &self.sampled else { return mix };
+        let mut weight = [one; MAX_CHANNELS];
+        let mut term = [zero; MAX_CHANNELS];
+        let (mut cos, mut alive) = (wo.z, Mask::ALL);
+        for (layer, lobe) in self.layers.iter().zip(sampled) {
+            match layer {
+                LaneLayer::Dielectric { eta, depth, colour, .. } => {
+                    let f = dielectric(cos, *eta);
+                    if lobe.is_some() {
+                        mix.push(Floats::and(alive, mean(&weight[..c]) * f), *lobe);
+                    }
+                    let sin_t = (1.0 - cos * cos).max(zero).sqrt() * (1.0 / *eta as f32);
+                    alive = alive & sin_t.lt(one);
+                    cos = (1.0 - sin_t * sin_t).max(zero).sqrt();
+                    let path = -2.0 / cos.max(Floats::splat(1e-9));
+                    let kept = (1.0 - f) * (1.0 - f);
+                    for ch in 0..c {
+                        let k = if depth[ch] == 0.0 { one } else { (path * depth[ch]).exp() };
+                        let t = weight[ch] * kept;
+                        term[ch] = t * (1.0 - k) * (colour[ch] * std::f32::consts::PI);
+                        weight[ch] = t * k;
+                    }
+                    mix.push(Floats::and(alive, mean(&term[..c])), None);
+                }
+                LaneLayer::Conductor { ior, .. } => {
+                    if lobe.is_some() {
+                        for ch in 0..c {
+                            term[ch] = weight[ch] * conductor(cos, &ior[ch]);
+                        }
+                        mix.push(Floats::and(alive, mean(&term[..c])), *lobe);
+                    }
+                }
+                LaneLayer::Diffuse { rho } => {
+                    for ch in 0..c {
+                        term[ch] = weight[ch] * (rho[ch] * std::f32::consts::PI);
+                    }
+                    mix.push(Floats::and(alive, mean(&term[..c])), None);
+                }
+            }
+        }
+        mix.add_defensive_share();
+        mix
     }
 }
 
