@@ -15,7 +15,7 @@
 
 pub mod lanes;
 
-pub use lanes::{Floats, Mask, LANES, V3};
+pub use lanes::{per_lane, Floats, Mask, LANES, V3};
 use rayon::prelude::*;
 use std::sync::atomic::{AtomicBool, Ordering};
 
@@ -203,9 +203,9 @@ fn rows<P: Pass>(p: &P, a: Rows, b: Rows, first: usize, out: &mut [f32], f: &mut
         f.iter_mut().for_each(|v| *v = v.min(Floats::splat(f32::MAX)));
         if m == LANES && channels == 3 {
             // RGB: `load`'s transposition backwards, three permutations and the blends into three vectors.
-            let t: [Floats; 3] = std::array::from_fn(|c| Floats(std::array::from_fn(|l| f[c].0[ROW[c][l]])));
+            let t: [Floats; 3] = std::array::from_fn(|c| Floats(per_lane(|l| f[c].0[ROW[c][l]])));
             for (k, v) in o.chunks_exact_mut(LANES).enumerate() {
-                v.copy_from_slice(&std::array::from_fn::<f32, LANES, _>(|l| t[(LANES * k + l) % 3].0[l]));
+                v.copy_from_slice(&per_lane(|l| t[(LANES * k + l) % 3].0[l]));
             }
         } else {
             for (i, row) in o.chunks_exact_mut(channels).enumerate() {
@@ -259,10 +259,10 @@ fn load(rows: Rows, r: usize, m: usize) -> V3 {
             // vector (3i + c) / LANES (3 and LANES coprime). Per component: a blend of the three vectors (each lane from the vector that holds it
             // there), then a permutation of the lanes: two blends and a permute instruction on AVX2.
             let s = &s[3 * r..3 * r + 3 * LANES];
-            let v: [Floats; 3] = std::array::from_fn(|k| Floats(std::array::from_fn(|l| s[LANES * k + l])));
+            let v: [Floats; 3] = std::array::from_fn(|k| Floats(per_lane(|l| s[LANES * k + l])));
             let lane = |c: usize| {
-                let t = Floats(std::array::from_fn(|l| v[HOLDER[c][l]].0[l]));
-                Floats(std::array::from_fn(|i| t.0[(3 * i + c) % LANES]))
+                let t = Floats(per_lane(|l| v[HOLDER[c][l]].0[l]));
+                Floats(per_lane(|i| t.0[(3 * i + c) % LANES]))
             };
             V3 { x: lane(0), y: lane(1), z: lane(2) }
         }
