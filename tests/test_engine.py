@@ -298,19 +298,20 @@ def test_broadcast_and_strided_float32_inputs_give_the_packed_result():
         ("weidlich_wilkie", {"distribution": "ggx"}),
         ("weidlich_wilkie", {}),
         ("albedo_scaling", {}),
+        ("tabulated", {}),
     ],
 )
 def test_float32_sample_weights_carry_the_float32_f(model, options):
     # For float32 inputs `Stack.sample` of a layered model samples in lanes (models/common/mixture_lanes.rs: belcour,
-    # steinberg, weidlich_wilkie with GGX interfaces); weidlich_wilkie's Beckmann interfaces and albedo_scaling draw
-    # their directions in float64, then evaluate f at them by the float32 engine. Each weight is `eval`'s float32 f at
-    # the returned wi times cos θi / pdf, to the float32 rounding of the stored weight, wi and pdf (1e-6), and of wo,
-    # which the sampler normalises in float64 first (`_conditioning`). Against float64 from the same u: the same
-    # samples kept, wi within 4e-6 of the float64 sampler's (measured 3.6e-6), the pdf within 1e-5 of the float64
-    # pdf's at the returned wi (measured 4.7e-6), and each weight within `_compare`'s bound of the float64 model's f
-    # cos θi / pdf at the returned wi (measured 1.1e-6 in lanes, 6.4e-6 at most; a grazing wi's float32 rounding alone
-    # moves the weight by up to 2.8e-3 from the float64 sampler's own, which is why the float64 side is evaluated at
-    # the float32 direction).
+    # steinberg, weidlich_wilkie with GGX interfaces, tabulated); weidlich_wilkie's Beckmann interfaces and
+    # albedo_scaling draw their directions in float64, then evaluate f at them by the float32 engine. Each weight is
+    # `eval`'s float32 f at the returned wi times cos θi / pdf, to the float32 rounding of the stored weight, wi and
+    # pdf (1e-6), and of wo, which the sampler normalises in float64 first (`_conditioning`). Against float64 from
+    # the same u: the same samples kept, wi within 4e-6 of the float64 sampler's (measured 3.6e-6), the pdf within
+    # 1e-5 of the float64 pdf at the returned wi (measured 4.7e-6), and each weight within `_compare`'s bound of the
+    # float64 model's f cos θi / pdf at the returned wi (measured 1.1e-6 in lanes, 6.4e-6 at most; a grazing wi's
+    # float32 rounding alone moves the weight by up to 2.8e-3 from the float64 sampler's own, which is why the
+    # float64 side is evaluated at the float32 direction).
     stack = suite("rough-coat-rough-copper")
     rng = np.random.default_rng(12)
     wo = random_hemisphere(rng, 20_000).astype(np.float32)

@@ -33,7 +33,10 @@ STACKS = {
     },
     # Weidlich–Wilkie with GGX interfaces, which it samples in float32 lanes (its default, Beckmann, in float64).
     "weidlich_wilkie_ggx": {"rough-coat-rough-copper": suite("rough-coat-rough-copper")},
-    "tabulated": {name: suite(name) for name in ("rough-coat-rough-copper", "varnished-diffuse", "three-layer")},
+    "tabulated": {
+        name: suite(name)
+        for name in ("rough-coat-rough-copper", "varnished-diffuse", "three-layer", "anisotropic-coat-metal")
+    },
 }
 CASES = [(m, name) for m, stacks in STACKS.items() for name in stacks]
 #: The model and options of each key of STACKS that is not a model's name.
@@ -87,7 +90,7 @@ def _chi2_pvalue(observed, expected):
 
 #: The models that sample float32 inputs in lanes (models/common/mixture_lanes.rs and the rough conductor's own):
 #: their chi-square test runs in float32 too, against the same (float64) pdf.
-LANE_SAMPLERS = ("microfacet", "belcour", "steinberg", "weidlich_wilkie_ggx")
+LANE_SAMPLERS = ("microfacet", "belcour", "steinberg", "weidlich_wilkie_ggx", "tabulated")
 DTYPES = [(m, name, np.float64) for m, name in CASES] + [
     (m, name, np.float32) for m, name in CASES if m in LANE_SAMPLERS
 ]

@@ -27,11 +27,12 @@
 
 use super::common::block::{simd_columns, BLOCK};
 use super::common::mixture::defensive_mixture;
+use super::common::mixture_lanes::{self, LaneMixture, Proposals, MAX_TERMS};
 use super::common::options::{microsurface, DISTRIBUTION, G2};
 use super::{microfacet, Field, Gradient, InputSpec, Model, ModelInfo, OptionSpec, Properties, Proposal, Seed};
 use crate::bsdf::rough_dielectric;
 use crate::dual::Real;
-use crate::engine::{self, Floats, Rows, LANES, V3};
+use crate::engine::{self, per_lane, Floats, Rows, LANES, V3};
 use crate::error::{value_error, Result};
 use crate::models::FitLanes;
 use crate::optics::distribution::{Distribution, G2Form, Microfacet};
@@ -280,6 +281,56 @@ struct Lanes<'a> {
     top: Option<Ggx>,
 }
 
+impl Prepared {
+    /// The kernel, where the lanes cover the top (a GGX or smooth top with a Smith G2).
+    fn lanes(&self) -> Option<Lanes<'_>> {
+        let top = match &self.top {
+            Some(mf) => Some(Ggx::new(mf, self.g2)?),
+            None => None,
+        };
+        Some(Lanes { p: self, top })
+    }
+}
+
+/// The kernel with what its sampling mixture needs in lanes: the inner lobes as GGX and the albedo below the top per
+/// zenith node in float32.
+struct Sampled<'a> {
+    lanes: Lanes<'a>,
+    lobes: Vec<Ggx>,
+    below: Vec<f32>,
+}
+
+impl engine::Kernel for Sampled<'_> {
+    #[inline(always)]
+    fn eval(&self, wi: V3, wo: V3, out: &mut [Floats]) {
+        self.lanes.eval(wi, wo, out)
+    }
+}
+
+/// `Prepared::proposals` in lanes: the top's lobe by its Fresnel reflectance at cos θo, the albedo below it
+/// (interpolated at θo) shared by the inner lobes (or the cosine without any), and the defensive share.
+impl Proposals for Sampled<'_> {
+    #[inline(always)]
+    fn proposals(&self, wo: V3) -> LaneMixture {
+        let (node, f) = zenith_node_lanes(wo, self.below.len());
+        let at = |dk: usize| Floats(per_lane(|l| self.below[node[l] as usize + dk]));
+        let below = (1.0 - f).mul_add(at(0), f * at(1));
+        let mut mix = LaneMixture::new();
+        if let Some(top) = self.lanes.top {
+            mix.push(lanes::dielectric(wo.z, self.lanes.p.eta[0]), Some(top));
+        }
+        let share = below * (1.0 / self.lobes.len().max(1) as f32);
+        for lobe in &self.lobes {
+            mix.push(share, Some(*lobe));
+        }
+        if self.lobes.is_empty() {
+            mix.push(below, None);
+        }
+        mix.add_defensive_share();
+        mix
+    }
+}
+
 /// `node(zenith(cos θ), n)` of a unit direction in lanes (either side; below the horizon as at it), as exact as float32
 /// allows at both ends of the coordinate x = √(1 − cos θ): near the normal from x = √((x² + y²) / (1 + cos θ)) (no
 /// cancellation), and near the horizon (x > ½) from the distance to the top node, t = (n − 1)(1 − x) with
@@ -388,14 +439,16 @@ impl Model for Prepared {
     }
 
     fn eval_f32(&self, wi: Rows, wo: Rows, fit: Option<&FitLanes>, out: &mut [f32]) -> bool {
-        let top = match &self.top {
-            Some(mf) => match Ggx::new(mf, self.g2) {
-                Some(ggx) => Some(ggx),
-                None => return false,
-            },
-            None => None,
-        };
-        engine::eval(&Lanes { p: self, top }, fit, self.eta.len(), wi, wo, out)
+        self.lanes().is_some_and(|k| engine::eval(&k, fit, self.eta.len(), wi, wo, out))
+    }
+
+    fn sample_f32(&self, wo: Rows, u: Rows, out: &mut [f32]) -> bool {
+        let Some(lanes) = self.lanes() else { return false };
+        // The inner lobes as GGX (whatever the G2: only their visible normals are sampled); None for Beckmann.
+        let lobes: Option<Vec<Ggx>> = self.lobes.iter().map(|mf| Ggx::new(mf, G2Form::Separable)).collect();
+        let Some(lobes) = lobes.filter(|l| l.len() + 3 <= MAX_TERMS) else { return false };
+        let below = self.albedo_below_top.iter().map(|&a| a as f32).collect();
+        mixture_lanes::sample(&Sampled { lanes, lobes, below }, self.eta.len(), wo, u, out)
     }
 
     fn proposals(&self, wo: DVec3) -> Vec<(f64, Proposal)> {
