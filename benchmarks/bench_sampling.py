@@ -34,6 +34,7 @@ CASES = [
         lambda: lamina.materials.suite("rough-coat-rough-copper"),
         {"distribution": "ggx"},
     ),
+    ("albedo_scaling", "albedo_scaling", lambda: lamina.materials.suite("rough-coat-rough-copper"), {}),
     ("tabulated", "tabulated", lambda: lamina.materials.suite("rough-coat-rough-copper"), {}),
     ("reference (one walk per sample)", "reference", lambda: lamina.materials.suite("rough-coat-rough-copper"), {}),
 ]
@@ -80,10 +81,10 @@ def main() -> None:
         f"`llvm_ad_rgb` `roughconductor`'s `sample` (one GGX lobe, {N / mitsuba_t:,.0f} samples/s in this run, its "
         "direction, weight and pdf converted to NumPy). Timings as in the conductor section (median of round-robin "
         "runs, OPENBLAS_NUM_THREADS=1). The rough conductor, belcour, steinberg, weidlich_wilkie with GGX "
-        "interfaces and tabulated sample float32 inputs in float32 lanes (the mixture's lobe, its direction, the "
-        "mixture's pdf and f in one pass: models/common/mixture_lanes.rs); weidlich_wilkie's default Beckmann "
-        "interfaces, whose visible normals the lanes do not sample, draw the directions in float64 and evaluate f "
-        "in lanes.",
+        "interfaces, albedo_scaling and tabulated sample float32 inputs in float32 lanes (the mixture's lobe, its "
+        "direction, the mixture's pdf and f in one pass: models/common/mixture_lanes.rs); weidlich_wilkie's default "
+        "Beckmann interfaces, whose visible normals the lanes do not sample, draw the directions in float64 and "
+        "evaluate f in lanes.",
         "",
         "| model | median time (s) | samples/s | ratio to Mitsuba's one lobe |",
         "|---|---:|---:|---:|",

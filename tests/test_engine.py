@@ -303,8 +303,8 @@ def test_broadcast_and_strided_float32_inputs_give_the_packed_result():
 )
 def test_float32_sample_weights_carry_the_float32_f(model, options):
     # For float32 inputs `Stack.sample` of a layered model samples in lanes (models/common/mixture_lanes.rs: belcour,
-    # steinberg, weidlich_wilkie with GGX interfaces, tabulated); weidlich_wilkie's Beckmann interfaces and
-    # albedo_scaling draw their directions in float64, then evaluate f at them by the float32 engine. Each weight is
+    # steinberg, weidlich_wilkie with GGX interfaces, albedo_scaling, tabulated); weidlich_wilkie's Beckmann
+    # interfaces draw their directions in float64, then evaluate f at them by the float32 engine. Each weight is
     # `eval`'s float32 f at the returned wi times cos θi / pdf, to the float32 rounding of the stored weight, wi and
     # pdf (1e-6), and of wo, which the sampler normalises in float64 first (`_conditioning`). Against float64 from
     # the same u: the same samples kept, wi within 4e-6 of the float64 sampler's (measured 3.6e-6), the pdf within

@@ -90,7 +90,7 @@ def _chi2_pvalue(observed, expected):
 
 #: The models that sample float32 inputs in lanes (models/common/mixture_lanes.rs and the rough conductor's own):
 #: their chi-square test runs in float32 too, against the same (float64) pdf.
-LANE_SAMPLERS = ("microfacet", "belcour", "steinberg", "weidlich_wilkie_ggx", "tabulated")
+LANE_SAMPLERS = ("microfacet", "belcour", "steinberg", "weidlich_wilkie_ggx", "albedo_scaling", "tabulated")
 DTYPES = [(m, name, np.float64) for m, name in CASES] + [
     (m, name, np.float32) for m, name in CASES if m in LANE_SAMPLERS
 ]

@@ -9,6 +9,10 @@
 //! loop is compiled twice, for AVX2 + FMA (the kernel's lane operations become 256-bit instructions) and portably,
 //! and the choice is made once per call; both give the same bits (lanes.rs).
 //!
+//! Importance sampling takes the same path: a kernel that also proposes its sampling mixture in lanes
+//! (models/common/mixture_lanes.rs, `Proposals`) gets `Stack.sample` in float32 from `mixture_lanes::sample`, called
+//! by its `Model::sample_f32`, with no sampling code of its own.
+//!
 //! A row that float32 cannot take as it is (NaN, Inf, a zero-length direction, or one whose squared length leaves
 //! float32's normal range or reaches 2¹²⁶) stops the engine: the call then runs on the careful float64 path, which raises the same
 //! errors as before and computes such rows exactly.

@@ -27,6 +27,7 @@
 
 use super::common::block::eval_rows;
 use super::common::mixture::defensive_mixture;
+use super::common::mixture_lanes::{self, mean, LaneMixture, Proposals, MAX_TERMS};
 use super::common::options::{choice, flag, g2};
 use super::common::single_pass::{self, beer_lambert, refracted_up, SpInterface, SpLayer};
 use super::common::walk_lanes::{self, MAX_CHANNELS};
@@ -37,7 +38,7 @@ use crate::error::Result;
 use crate::models::FitLanes;
 use crate::optics::distribution::{Distribution, G2Form, Microfacet};
 use crate::optics::fresnel::FresnelForm;
-use crate::optics::lanes::{dielectric_transmittance, ConductorIor, Lobe};
+use crate::optics::lanes::{dielectric_transmittance, ConductorIor, Ggx, Lobe};
 use crate::optics::{diffuse, sin_theta};
 use crate::stack::Stack;
 use crate::tables::{self, fgd, lerp_lanes, node_lanes};
@@ -222,22 +223,18 @@ enum LaneInterface {
     /// The lobe (None: smooth), the relative IOR, the refraction's d = 1 − 1/η (walk_lanes::refracted_up), and per
     /// channel σt·d of the slab below; `unreflected`: 1 − E(μ) per μ node of the FGD table and channel (empty for a
     /// smooth interface, whose 1 − E is the Fresnel transmittance).
-    Dielectric {
-        lobe: Option<Lobe>,
-        eta: f64,
-        d: f32,
-        depth: Vec<f32>,
-        unreflected: Vec<f32>,
-    },
-    Conductor {
-        lobe: Option<Lobe>,
-        ior: Vec<ConductorIor>,
-    },
+    Dielectric { lobe: Option<Lobe>, eta: f64, d: f32, depth: Vec<f32>, unreflected: Vec<f32> },
+    /// The lobe, the IOR per channel, and E(μ) per μ node and channel (the sampling mixture's weight; empty when
+    /// smooth).
+    Conductor { lobe: Option<Lobe>, ior: Vec<ConductorIor>, albedo: Vec<f32> },
 }
 
 /// Albedo scaling in float32 lanes (`Prepared::eval`, term by term).
 struct Lanes {
     interfaces: Vec<LaneInterface>,
+    /// Per interface the GGX lobe it proposes to the sampling mixture (None: smooth); None where the mixture has more
+    /// than MAX_TERMS terms.
+    sampled: Option<Vec<Option<Ggx>>>,
     /// ρ/π per channel of a Lambertian base (empty: no diffuse base).
     base: Vec<f32>,
     reciprocal: bool,
@@ -280,7 +277,17 @@ impl Lanes {
                 SpLayer::Conductor { iface, .. } => {
                     let ior =
                         (0..channels).map(|c| ConductorIor::new(FresnelForm::Exact, iface.eta[c], iface.kappa[c]));
-                    interfaces.push(LaneInterface::Conductor { lobe: lobe(iface)?, ior: ior.collect() });
+                    let alpha = (iface.mf.alpha_x * iface.mf.alpha_y).sqrt();
+                    let albedo = match iface.mf.is_smooth() {
+                        true => vec![],
+                        false => (0..fgd::N_MU)
+                            .flat_map(|k| {
+                                let mu = k as f64 / (fgd::N_MU - 1) as f64;
+                                (0..channels).map(move |c| fgd().lookup(mu, alpha, iface.eta[c], iface.kappa[c]) as f32)
+                            })
+                            .collect(),
+                    };
+                    interfaces.push(LaneInterface::Conductor { lobe: lobe(iface)?, ior: ior.collect(), albedo });
                     break;
                 }
                 SpLayer::Diffuse { albedo, sigma, .. } if *sigma == 0.0 => {
@@ -289,7 +296,14 @@ impl Lanes {
                 SpLayer::Diffuse { .. } => return None,
             }
         }
-        Some(Lanes { interfaces, base, reciprocal: opts.reciprocal, channels })
+        // The mixture draws visible normals of each rough interface's GGX (albedo scaling takes no other).
+        let ggx =
+            |i: &SpInterface| if i.mf.is_smooth() { Some(None) } else { Ggx::new(&i.mf, G2Form::Separable).map(Some) };
+        let sampled: Option<Vec<Option<Ggx>>> =
+            layers.iter().filter_map(SpLayer::interface).take(interfaces.len()).map(ggx).collect();
+        let terms = |s: &Vec<Option<Ggx>>| s.iter().flatten().count() + !base.is_empty() as usize + 1;
+        let sampled = sampled.filter(|s| terms(s) <= MAX_TERMS);
+        Some(Lanes { interfaces, sampled, base, reciprocal: opts.reciprocal, channels })
     }
 }
 
@@ -330,7 +344,7 @@ impl engine::Kernel for Lanes {
                         *w = *w * (light * view).max(zero) * beer;
                     }
                 }
-                LaneInterface::Conductor { lobe, ior } => {
+                LaneInterface::Conductor { lobe, ior, .. } => {
                     if let Some(lobe) = lobe {
                         walk_lanes::add_conductor_lobe(out, weight, alive, lobe, ior, wi, wo);
                     }
@@ -344,6 +358,61 @@ impl engine::Kernel for Lanes {
     }
 }
 
+/// `Prepared::proposals` in lanes: each rough interface's lobe by its albedo E(μo) times the scales S above it, the
+/// diffuse base by its albedo times them, and the defensive share.
+impl Proposals for Lanes {
+    #[inline(always)]
+    fn proposals(&self, wo: V3) -> LaneMixture {
+        let (zero, one) = (Floats::splat(0.0), Floats::splat(1.0));
+        let c = self.channels;
+        let mut mix = LaneMixture::new();
+        let Some(sampled) = &self.sampled else { return mix };
+        let (mut weight, mut term) = ([one; MAX_CHANNELS], [zero; MAX_CHANNELS]);
+        for (interface, lobe) in self.interfaces.iter().zip(sampled) {
+            match interface {
+                LaneInterface::Dielectric { eta, d, depth, unreflected, .. } => {
+                    let mut view = [zero; MAX_CHANNELS];
+                    for (ch, v) in view[..c].iter_mut().enumerate() {
+                        *v = unreflected_lanes(unreflected, c, *eta, wo.z, ch);
+                    }
+                    if lobe.is_some() {
+                        for ch in 0..c {
+                            term[ch] = weight[ch] * (one - view[ch]);
+                        }
+                        mix.push(mean(&term[..c]), *lobe);
+                    }
+                    let down = walk_lanes::refracted_up(wo, Floats::splat(*d));
+                    let path = 2.0 / down.z.max(Floats::splat(1e-9));
+                    for ch in 0..c {
+                        let light = if self.reciprocal { view[ch] } else { one };
+                        let beer = if depth[ch] == 0.0 { one } else { (-(path * depth[ch])).exp() };
+                        weight[ch] = weight[ch] * (light * view[ch]).max(zero) * beer;
+                    }
+                }
+                LaneInterface::Conductor { albedo, .. } => {
+                    if lobe.is_some() {
+                        let at = node_lanes(wo.z, fgd::N_MU);
+                        for ch in 0..c {
+                            term[ch] = weight[ch] * lerp_lanes(albedo, c, &at, ch);
+                        }
+                        mix.push(mean(&term[..c]), *lobe);
+                    }
+                    mix.add_defensive_share();
+                    return mix;
+                }
+            }
+        }
+        if !self.base.is_empty() {
+            for ch in 0..c {
+                term[ch] = weight[ch] * (self.base[ch] * std::f32::consts::PI);
+            }
+            mix.push(mean(&term[..c]), None);
+        }
+        mix.add_defensive_share();
+        mix
+    }
+}
+
 impl Model for Prepared {
     fn eval_block(&self, wi: [&[f64]; 3], wo: [&[f64]; 3], _: &Inputs, out: &mut [f64]) {
         eval_rows(wi, wo, out, |_, wi, wo, o| self.eval(wi, wo, o))
@@ -351,6 +420,11 @@ impl Model for Prepared {
 
     fn eval_f32(&self, wi: Rows, wo: Rows, fit: Option<&FitLanes>, out: &mut [f32]) -> bool {
         self.lanes.as_ref().is_some_and(|k| engine::eval(k, fit, self.channels, wi, wo, out))
+    }
+
+    fn sample_f32(&self, wo: Rows, u: Rows, out: &mut [f32]) -> bool {
+        let lanes = self.lanes.as_ref().filter(|k| k.sampled.is_some());
+        lanes.is_some_and(|k| mixture_lanes::sample(k, self.channels, wo, u, out))
     }
 
     fn proposals(&self, wo: DVec3) -> Vec<(f64, Proposal)> {
