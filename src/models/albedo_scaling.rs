@@ -27,7 +27,7 @@
 
 use super::common::block::eval_rows;
 use super::common::mixture::defensive_mixture;
-use super::common::mixture_lanes::{self, mean, LaneMixture, Proposals, MAX_TERMS};
+use super::common::mixture_lanes::{self, mean, proposed_lobe, LaneMixture, Proposals, MAX_TERMS};
 use super::common::options::{choice, flag, g2};
 use super::common::single_pass::{self, beer_lambert, refracted_up, SpInterface, SpLayer};
 use super::common::walk_lanes::{self, MAX_CHANNELS};
@@ -255,17 +255,7 @@ impl Lanes {
             match layer {
                 SpLayer::Dielectric { iface, thickness, sigma_t, .. } => {
                     let eta = iface.eta[0];
-                    // 1 − E per μ node, channels fastest; κ may differ per channel (the FGD lookup reads it).
-                    let alpha = (iface.mf.alpha_x * iface.mf.alpha_y).sqrt();
-                    let unreflected = match iface.mf.is_smooth() {
-                        true => vec![],
-                        false => (0..fgd::N_MU)
-                            .flat_map(|k| {
-                                let mu = k as f64 / (fgd::N_MU - 1) as f64;
-                                (0..channels).map(move |c| (1.0 - fgd().lookup(mu, alpha, eta, iface.kappa[c])) as f32)
-                            })
-                            .collect(),
-                    };
+                    let unreflected = fgd_slice(iface, channels, |e| 1.0 - e);
                     interfaces.push(LaneInterface::Dielectric {
                         lobe: lobe(iface)?,
                         eta,
@@ -277,16 +267,7 @@ impl Lanes {
                 SpLayer::Conductor { iface, .. } => {
                     let ior =
                         (0..channels).map(|c| ConductorIor::new(FresnelForm::Exact, iface.eta[c], iface.kappa[c]));
-                    let alpha = (iface.mf.alpha_x * iface.mf.alpha_y).sqrt();
-                    let albedo = match iface.mf.is_smooth() {
-                        true => vec![],
-                        false => (0..fgd::N_MU)
-                            .flat_map(|k| {
-                                let mu = k as f64 / (fgd::N_MU - 1) as f64;
-                                (0..channels).map(move |c| fgd().lookup(mu, alpha, iface.eta[c], iface.kappa[c]) as f32)
-                            })
-                            .collect(),
-                    };
+                    let albedo = fgd_slice(iface, channels, |e| e);
                     interfaces.push(LaneInterface::Conductor { lobe: lobe(iface)?, ior: ior.collect(), albedo });
                     break;
                 }
@@ -296,15 +277,24 @@ impl Lanes {
                 SpLayer::Diffuse { .. } => return None,
             }
         }
-        // The mixture draws visible normals of each rough interface's GGX (albedo scaling takes no other).
-        let ggx =
-            |i: &SpInterface| if i.mf.is_smooth() { Some(None) } else { Ggx::new(&i.mf, G2Form::Separable).map(Some) };
         let sampled: Option<Vec<Option<Ggx>>> =
-            layers.iter().filter_map(SpLayer::interface).take(interfaces.len()).map(ggx).collect();
+            layers.iter().filter_map(SpLayer::interface).take(interfaces.len()).map(|i| proposed_lobe(&i.mf)).collect();
         let terms = |s: &Vec<Option<Ggx>>| s.iter().flatten().count() + !base.is_empty() as usize + 1;
         let sampled = sampled.filter(|s| terms(s) <= MAX_TERMS);
         Some(Lanes { interfaces, sampled, base, reciprocal: opts.reciprocal, channels })
     }
+}
+
+/// `g(E(μ))` of a rough interface per μ node of the FGD table and channel (channels fastest), sliced at its α, η and κ
+/// (κ and, for a conductor, η per channel); empty for a smooth interface.
+fn fgd_slice(iface: &SpInterface, channels: usize, g: impl Fn(f64) -> f64) -> Vec<f32> {
+    if iface.mf.is_smooth() {
+        return vec![];
+    }
+    let alpha = (iface.mf.alpha_x * iface.mf.alpha_y).sqrt();
+    let mu = |k: usize| k as f64 / (fgd::N_MU - 1) as f64;
+    let e = |k: usize, c: usize| fgd().lookup(mu(k), alpha, iface.eta[c], iface.kappa[c]);
+    (0..fgd::N_MU).flat_map(|k| (0..channels).map(move |c| (k, c))).map(|(k, c)| g(e(k, c)) as f32).collect()
 }
 
 /// 1 − E(μ) of channel c in lanes: the interface's FGD slice, or the Fresnel transmittance of a smooth interface.

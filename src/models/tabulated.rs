@@ -27,7 +27,7 @@
 
 use super::common::block::{simd_columns, BLOCK};
 use super::common::mixture::defensive_mixture;
-use super::common::mixture_lanes::{self, LaneMixture, Proposals, MAX_TERMS};
+use super::common::mixture_lanes::{self, proposed_lobe, LaneMixture, Proposals, MAX_TERMS};
 use super::common::options::{microsurface, DISTRIBUTION, G2};
 use super::{microfacet, Field, Gradient, InputSpec, Model, ModelInfo, OptionSpec, Properties, Proposal, Seed};
 use crate::bsdf::rough_dielectric;
@@ -444,8 +444,8 @@ impl Model for Prepared {
 
     fn sample_f32(&self, wo: Rows, u: Rows, out: &mut [f32]) -> bool {
         let Some(lanes) = self.lanes() else { return false };
-        // The inner lobes as GGX (whatever the G2: only their visible normals are sampled); None for Beckmann.
-        let lobes: Option<Vec<Ggx>> = self.lobes.iter().map(|mf| Ggx::new(mf, G2Form::Separable)).collect();
+        // The inner lobes (all rough) as GGX; None for Beckmann.
+        let lobes: Option<Vec<Ggx>> = self.lobes.iter().map(|mf| proposed_lobe(mf).flatten()).collect();
         let Some(lobes) = lobes.filter(|l| l.len() + 3 <= MAX_TERMS) else { return false };
         let below = self.albedo_below_top.iter().map(|&a| a as f32).collect();
         mixture_lanes::sample(&Sampled { lanes, lobes, below }, self.eta.len(), wo, u, out)

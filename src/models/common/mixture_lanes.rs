@@ -7,6 +7,7 @@
 
 use super::mixture::DEFENSIVE;
 use crate::engine::{self, Floats, Kernel, Mask, Rows, V3};
+use crate::optics::distribution::{G2Form, Microfacet};
 use crate::optics::lanes::{cosine_hemisphere, ggx_pdf_reflection, ggx_sample_reflection, Ggx};
 use std::f32::consts::FRAC_1_PI;
 
@@ -44,6 +45,15 @@ impl LaneMixture {
     pub fn add_defensive_share(&mut self) {
         let total = self.total();
         self.push(total * (DEFENSIVE / (1.0 - DEFENSIVE)) as f32, None);
+    }
+}
+
+/// The lobe a rough interface of microfacets `mf` proposes to a lane mixture: its GGX visible normals, whatever its
+/// G2 (Some(None) for a smooth interface, which proposes none; None for Beckmann, which the lanes do not sample).
+pub fn proposed_lobe(mf: &Microfacet) -> Option<Option<Ggx>> {
+    match mf.is_smooth() {
+        true => Some(None),
+        false => Ggx::new(mf, G2Form::Separable).map(Some),
     }
 }
 

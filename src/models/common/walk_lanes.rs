@@ -5,10 +5,9 @@
 //! The same arithmetic as `Walk::eval_group`, for the stacks the lanes cover (`LaneWalk::new`); the others stay
 //! on the float64 path.
 
-use super::mixture_lanes::{mean, LaneMixture, MAX_TERMS};
+use super::mixture_lanes::{mean, proposed_lobe, LaneMixture, MAX_TERMS};
 use super::single_pass::{shared_eta, SpLayer, Walk};
 use crate::engine::{Floats, Mask, V3};
-use crate::optics::distribution::G2Form;
 use crate::optics::fresnel::FresnelForm;
 use crate::optics::lanes::{conductor, dielectric, sin_theta, ConductorIor, Ggx, Lobe};
 
@@ -109,11 +108,7 @@ impl LaneWalk {
             })
         };
         let layers = walk.layers.iter().map(lane_layer).collect::<Option<Vec<_>>>()?;
-        // The mixture draws visible normals of the interface's distribution, whatever its G2.
-        let sampled = |layer: &SpLayer| match layer.interface() {
-            Some(iface) if !iface.mf.is_smooth() => Ggx::new(&iface.mf, G2Form::Separable).map(Some),
-            _ => Some(None),
-        };
+        let sampled = |layer: &SpLayer| layer.interface().map_or(Some(None), |iface| proposed_lobe(&iface.mf));
         let terms = |layer: &LaneLayer| match layer {
             LaneLayer::Dielectric { lobe, .. } => 1 + lobe.is_some() as usize,
             LaneLayer::Conductor { lobe, .. } => lobe.is_some() as usize,
@@ -167,9 +162,7 @@ impl LaneWalk {
             }
         }
     }
-}
 
-impl LaneWalk {
     /// Whether the lanes sample the walk (`proposals`).
     pub fn samples(&self) -> bool {
         self.sampled.is_some()
