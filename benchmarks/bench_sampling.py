@@ -25,6 +25,12 @@ CASES = [
         lambda: lamina.Stack([lamina.Conductor(ETA, K, ALPHA)]),
         {},
     ),
+    (
+        "microfacet, distribution='beckmann'",
+        "microfacet",
+        lambda: lamina.Stack([lamina.Conductor(ETA, K, ALPHA)]),
+        {"distribution": "beckmann"},
+    ),
     ("belcour", "belcour", lambda: lamina.materials.suite("rough-coat-rough-copper"), {}),
     ("steinberg", "steinberg", lambda: lamina.materials.suite("rough-coat-rough-copper"), {}),
     ("weidlich_wilkie", "weidlich_wilkie", lambda: lamina.materials.suite("rough-coat-rough-copper"), {}),
@@ -80,11 +86,10 @@ def main() -> None:
         f"the reference on {N // 20:,} samples (one random walk each). Ratio: throughput relative to Mitsuba 3 "
         f"`llvm_ad_rgb` `roughconductor`'s `sample` (one GGX lobe, {N / mitsuba_t:,.0f} samples/s in this run, its "
         "direction, weight and pdf converted to NumPy). Timings as in the conductor section (median of round-robin "
-        "runs, OPENBLAS_NUM_THREADS=1). The rough conductor, belcour, steinberg, weidlich_wilkie with GGX "
-        "interfaces, albedo_scaling and tabulated sample float32 inputs in float32 lanes (the mixture's lobe, its "
-        "direction, the mixture's pdf and f in one pass: models/common/mixture_lanes.rs); weidlich_wilkie's default "
-        "Beckmann interfaces, whose visible normals the lanes do not sample, draw the directions in float64 and "
-        "evaluate f in lanes.",
+        "runs, OPENBLAS_NUM_THREADS=1). The rough conductor, belcour, steinberg, weidlich_wilkie (Beckmann or "
+        "GGX interfaces), albedo_scaling and tabulated sample float32 inputs in float32 lanes (the mixture's lobe, "
+        "its direction, the mixture's pdf and f in one pass: models/common/mixture_lanes.rs; Beckmann's visible "
+        "slopes by Halley's method on their CDF, optics/lanes.rs).",
         "",
         "| model | median time (s) | samples/s | ratio to Mitsuba's one lobe |",
         "|---|---:|---:|---:|",

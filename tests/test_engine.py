@@ -202,15 +202,29 @@ def test_the_walks_on_the_held_out_population_and_the_fuzz_in_float32(model):
         _compare(stack, model, wi, wo)
 
 
-@pytest.mark.parametrize("g2", ["separable", "height_correlated"])
+@pytest.mark.parametrize(
+    "distribution,g2",
+    [
+        ("ggx", "separable"),
+        ("ggx", "height_correlated"),
+        ("beckmann", "separable"),
+        ("beckmann", "height_correlated"),
+        ("beckmann", "v_cavity"),
+    ],
+)
 @pytest.mark.parametrize("material", ["Au", "Cu", "Al"])
-def test_the_rough_conductor_in_float32_is_within_1e5_of_float64(material, g2):
-    # Roughness 0.1–1, isotropic, anisotropic and rotated: 1e-5 on every pair. Measured: 6.9e-6 at most on these
-    # pairs (1.06e-5 for roughness (0.1, 0.5) on docs/benchmarks.md's 100,000: at the bound).
+def test_the_rough_conductor_in_float32_is_within_1e5_of_float64(material, distribution, g2):
+    # Roughness 0.1–1, isotropic, anisotropic and rotated: 1e-5 on every pair for GGX (measured: 6.9e-6 at most on
+    # these pairs, 1.06e-5 for roughness (0.1, 0.5) on docs/benchmarks.md's 100,000: at the bound). Beckmann's
+    # D = exp(−q) / …, q = tan²θh / α², turns the float32 rounding of its exponent (a few ulp of q) into a relative
+    # error of about q · 3e-7, q ≈ 30 on the lobe's flanks still above 1e-3 of the peak: 1.5e-5 (measured 1.004e-5,
+    # its Smith Λ from the lanes' erfc; `_compare` holds every pair to the float64 model's own conditioning).
     wi, wo = _directions(20_000, 2)
+    worst = 0.0
     for roughness in [0.1, 0.3, 1.0, (0.1, 0.5)]:
         stack = lamina.Stack([metal(material, roughness, angle=0.3)])
-        assert _compare(stack, "microfacet", wi, wo, g2=g2) <= 1e-5, roughness
+        worst = max(worst, _compare(stack, "microfacet", wi, wo, distribution=distribution, g2=g2))
+    assert worst <= (1e-5 if distribution == "ggx" else 1.5e-5)
 
 
 @pytest.mark.parametrize("roughness", [1e-3, 0.01, 0.05, (0.05, 0.5)])
@@ -303,11 +317,12 @@ def test_broadcast_and_strided_float32_inputs_give_the_packed_result():
 )
 def test_float32_sample_weights_carry_the_float32_f(model, options):
     # For float32 inputs `Stack.sample` of a layered model samples in lanes (models/common/mixture_lanes.rs: belcour,
-    # steinberg, weidlich_wilkie with GGX interfaces, albedo_scaling, tabulated); weidlich_wilkie's Beckmann
-    # interfaces draw their directions in float64, then evaluate f at them by the float32 engine. Each weight is
+    # steinberg, weidlich_wilkie with GGX or Beckmann interfaces, albedo_scaling, tabulated). Each weight is
     # `eval`'s float32 f at the returned wi times cos θi / pdf, to the float32 rounding of the stored weight, wi and
     # pdf (1e-6), and of wo, which the sampler normalises in float64 first (`_conditioning`). Against float64 from
-    # the same u: the same samples kept, wi within 4e-6 of the float64 sampler's (measured 3.6e-6), the pdf within
+    # the same u: the same samples kept, wi within 4e-6 of the float64 sampler's (measured 3.6e-6; Beckmann's slopes,
+    # a root of their CDF found to its float32 rounding, which the density's tails magnify (optics/lanes.rs
+    # `beckmann_slopes`): 99% within 1e-5, all within 2e-4, measured 3.3e-6 and 3.2e-5), the pdf within
     # 1e-5 of the float64 pdf at the returned wi (measured 4.7e-6), and each weight within `_compare`'s bound of the
     # float64 model's f cos θi / pdf at the returned wi (measured 1.1e-6 in lanes, 6.4e-6 at most; a grazing wi's
     # float32 rounding alone moves the weight by up to 2.8e-3 from the float64 sampler's own, which is why the
@@ -328,7 +343,11 @@ def test_float32_sample_weights_carry_the_float32_f(model, options):
     assert (err <= np.where(big, bound * expected, 1e-8 * expected.max())).all()
     wi64, _, pdf64 = stack.sample(wo.astype(np.float64), u.astype(np.float64), model, **options)
     assert np.array_equal(valid, pdf64 > 0)
-    assert np.abs(wi[valid] - wi64[valid]).max() <= 4e-6
+    gap = np.abs(wi[valid] - wi64[valid]).max(axis=-1)
+    if model == "weidlich_wilkie" and not options:
+        assert np.quantile(gap, 0.99) <= 1e-5 and gap.max() <= 2e-4
+    else:
+        assert gap.max() <= 4e-6
     wi_, wo_ = wi[valid].astype(np.float64), wo[valid].astype(np.float64)
     pdf_at = stack.pdf(wi_, wo_, model, **options)
     assert np.allclose(pdf[valid], pdf_at, rtol=1e-5, atol=0)
@@ -339,12 +358,17 @@ def test_float32_sample_weights_carry_the_float32_f(model, options):
     assert (err <= np.where(big, rel * weight64, 1e-8 * weight64.max()) + 1e-7 * weight64).all()
 
 
+@pytest.mark.parametrize("distribution", ["ggx", "beckmann"])
 @pytest.mark.parametrize("roughness", [0.01, 0.05, 0.3, 1.0, (0.1, 0.5)])
-def test_the_rough_conductors_float32_sampler_draws_the_float64_samples(roughness):
+def test_the_rough_conductors_float32_sampler_draws_the_float64_samples(roughness, distribution):
     # `microfacet`'s float32 sampler (visible normals in lanes, optics/lanes.rs ggx_sample_reflection) draws, from the
     # same u, the float64 sampler's samples to float32. Where the visible-normal map is singular (the disk's rim) its
     # float32 arithmetic moves wi: 99.9% of the wi within 2e-5 of float64's (measured 1.3e-5 at α = 0.01, 1.6e-6 at
-    # α ≥ 0.1). The pdf follows D(m): within 1e-5 + 4e-7 / α² (measured 1.6e-3 at α = 0.01, 3e-6 at α = 0.3). Each
+    # α ≥ 0.1). The pdf follows D(m): within 1e-5 + 4e-7 / α² (measured 1.6e-3 at α = 0.01, 3e-6 at α = 0.3).
+    # Beckmann (beckmann_sample_reflection): its slopes are a root of their CDF found to float32's rounding, which
+    # the density's tails magnify: 99.9% within 1e-4 (measured 4.1e-5 at α = 1, 5e-7 at α = 0.01); its pdf, whose
+    # exponential would magnify that move, is compared with float64's at the returned wi, within the same bound
+    # (measured 9.1e-4 at α = 0.01, 2.9e-6 at α = 1). Each
     # weight is the float32 f of `eval` at its wi times cos θi / pdf within `_conditioning` (a grazing wi's cosine
     # magnifies float32's rounding of wi); the mean weight (the albedo's estimate) is float64's within 1e-4
     # (measured 5.6e-5).
@@ -352,16 +376,22 @@ def test_the_rough_conductors_float32_sampler_draws_the_float64_samples(roughnes
     rng = np.random.default_rng(13)
     wo = random_hemisphere(rng, 50_000).astype(np.float32)
     u = rng.random((50_000, 3)).astype(np.float32)
-    wi, weight, pdf = stack.sample(wo, u)
-    wi64, weight64, pdf64 = stack.sample(wo.astype(np.float64), u.astype(np.float64))
+    wi, weight, pdf = stack.sample(wo, u, distribution=distribution)
+    wi64, weight64, pdf64 = stack.sample(wo.astype(np.float64), u.astype(np.float64), distribution=distribution)
     assert wi.dtype == weight.dtype == pdf.dtype == np.float32
     assert np.array_equal(pdf > 0, pdf64 > 0)
     kept = pdf > 0
     alpha = min(np.atleast_1d(roughness))
-    assert np.quantile(np.abs(wi[kept] - wi64[kept]).max(axis=-1), 0.999) <= 2e-5
-    assert np.allclose(pdf[kept], pdf64[kept], rtol=1e-5 + 4e-7 / alpha**2, atol=0)
+    gap = np.abs(wi[kept] - wi64[kept]).max(axis=-1)
+    if distribution == "ggx":
+        assert np.quantile(gap, 0.999) <= 2e-5
+        assert np.allclose(pdf[kept], pdf64[kept], rtol=1e-5 + 4e-7 / alpha**2, atol=0)
+    else:
+        assert np.quantile(gap, 0.999) <= 1e-4
+        pdf_at = stack.pdf(wi[kept].astype(np.float64), wo[kept].astype(np.float64), distribution=distribution)
+        assert np.allclose(pdf[kept], pdf_at, rtol=1e-5 + 4e-7 / alpha**2, atol=0)
     assert (weight[~kept] == 0).all()
-    f = stack.eval(wi[kept], wo[kept]).astype(np.float64)
+    f = stack.eval(wi[kept], wo[kept], distribution=distribution).astype(np.float64)
     expected = f * wi[kept, 2:3] / pdf[kept, None]
     bound = np.maximum(1e-5, 4 * _conditioning(stack, wi[kept], wo[kept]))[:, None]
     assert (np.abs(weight[kept] - expected) <= bound * expected + 1e-8 * expected.max()).all()

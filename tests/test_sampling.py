@@ -31,7 +31,9 @@ STACKS = {
         }
         for m in ("belcour", "steinberg", "weidlich_wilkie", "albedo_scaling")
     },
-    # Weidlich–Wilkie with GGX interfaces, which it samples in float32 lanes (its default, Beckmann, in float64).
+    # A Beckmann conductor (Mitsuba's default roughconductor), and Weidlich–Wilkie with GGX interfaces (its default is
+    # Beckmann's).
+    "microfacet_beckmann": {"brushed": Stack([metal("Al", (0.15, 0.45), angle=0.5)])},
     "weidlich_wilkie_ggx": {"rough-coat-rough-copper": suite("rough-coat-rough-copper")},
     "tabulated": {
         name: suite(name)
@@ -40,7 +42,10 @@ STACKS = {
 }
 CASES = [(m, name) for m, stacks in STACKS.items() for name in stacks]
 #: The model and options of each key of STACKS that is not a model's name.
-VARIANTS = {"weidlich_wilkie_ggx": ("weidlich_wilkie", {"distribution": "ggx"})}
+VARIANTS = {
+    "weidlich_wilkie_ggx": ("weidlich_wilkie", {"distribution": "ggx"}),
+    "microfacet_beckmann": ("microfacet", {"distribution": "beckmann"}),
+}
 THETAS = (20.0, 65.0)
 
 
@@ -90,7 +95,16 @@ def _chi2_pvalue(observed, expected):
 
 #: The models that sample float32 inputs in lanes (models/common/mixture_lanes.rs and the rough conductor's own):
 #: their chi-square test runs in float32 too, against the same (float64) pdf.
-LANE_SAMPLERS = ("microfacet", "belcour", "steinberg", "weidlich_wilkie_ggx", "albedo_scaling", "tabulated")
+LANE_SAMPLERS = (
+    "microfacet",
+    "microfacet_beckmann",
+    "belcour",
+    "steinberg",
+    "weidlich_wilkie",
+    "weidlich_wilkie_ggx",
+    "albedo_scaling",
+    "tabulated",
+)
 DTYPES = [(m, name, np.float64) for m, name in CASES] + [
     (m, name, np.float32) for m, name in CASES if m in LANE_SAMPLERS
 ]

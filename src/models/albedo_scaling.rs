@@ -27,7 +27,7 @@
 
 use super::common::block::eval_rows;
 use super::common::mixture::defensive_mixture;
-use super::common::mixture_lanes::{self, mean, proposed_lobe, LaneMixture, Proposals, MAX_TERMS};
+use super::common::mixture_lanes::{self, mean, LaneMixture, Proposals, MAX_TERMS};
 use super::common::options::{choice, flag, g2};
 use super::common::single_pass::{self, beer_lambert, refracted_up, SpInterface, SpLayer};
 use super::common::walk_lanes::{self, MAX_CHANNELS};
@@ -38,7 +38,7 @@ use crate::error::Result;
 use crate::models::FitLanes;
 use crate::optics::distribution::{Distribution, G2Form, Microfacet};
 use crate::optics::fresnel::FresnelForm;
-use crate::optics::lanes::{dielectric_transmittance, ConductorIor, Ggx, Lobe};
+use crate::optics::lanes::{dielectric_transmittance, ConductorIor, Lobe, Visible};
 use crate::optics::{diffuse, sin_theta};
 use crate::stack::Stack;
 use crate::tables::{self, fgd, lerp_lanes, node_lanes};
@@ -234,7 +234,7 @@ struct Lanes {
     interfaces: Vec<LaneInterface>,
     /// Per interface the GGX lobe it proposes to the sampling mixture (None: smooth); None where the mixture has more
     /// than MAX_TERMS terms.
-    sampled: Option<Vec<Option<Ggx>>>,
+    sampled: Option<Vec<Option<Visible>>>,
     /// ρ/π per channel of a Lambertian base (empty: no diffuse base).
     base: Vec<f32>,
     reciprocal: bool,
@@ -277,10 +277,10 @@ impl Lanes {
                 SpLayer::Diffuse { .. } => return None,
             }
         }
-        let sampled: Option<Vec<Option<Ggx>>> =
-            layers.iter().filter_map(SpLayer::interface).take(interfaces.len()).map(|i| proposed_lobe(&i.mf)).collect();
-        let terms = |s: &Vec<Option<Ggx>>| s.iter().flatten().count() + !base.is_empty() as usize + 1;
-        let sampled = sampled.filter(|s| terms(s) <= MAX_TERMS);
+        let sampled: Vec<Option<Visible>> =
+            layers.iter().filter_map(SpLayer::interface).take(interfaces.len()).map(|i| Visible::new(&i.mf)).collect();
+        let terms = sampled.iter().flatten().count() + !base.is_empty() as usize + 1;
+        let sampled = (terms <= MAX_TERMS).then_some(sampled);
         Some(Lanes { interfaces, sampled, base, reciprocal: opts.reciprocal, channels })
     }
 }

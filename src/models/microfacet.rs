@@ -21,7 +21,7 @@ use crate::models::FitLanes;
 use crate::optics::diffuse;
 use crate::optics::distribution::{Distribution, G2Form, Microfacet};
 use crate::optics::fresnel::{self, FresnelForm};
-use crate::optics::lanes::{self, ConductorIor, Ggx};
+use crate::optics::lanes::{self, ConductorIor, Lobe, Visible};
 use crate::stack::{Layer, Stack};
 use glam::DVec3;
 use std::f64::consts::FRAC_1_PI;
@@ -245,11 +245,11 @@ impl Model for Prepared {
 }
 
 impl Prepared {
-    /// The rough GGX conductor in lanes, where the lanes cover it (Ggx::new).
+    /// The rough conductor in lanes (GGX or Beckmann, any G2).
     fn lanes(&self) -> Option<ConductorLanes> {
         let Prepared::Conductor { mf, g2, fresnel, eta, k } = self else { return None };
         let ior = eta.iter().zip(k).map(|(&e, &k)| ConductorIor::new(*fresnel, e, k)).collect();
-        Some(ConductorLanes { ggx: Ggx::new(mf, *g2)?, ior })
+        Some(ConductorLanes { lobe: Lobe::new(mf, *g2)?, visible: Visible::new(mf)?, ior })
     }
 
     /// f for a block of columns. The rough conductor runs in two passes, the geometry per row and then the Fresnel
@@ -287,16 +287,18 @@ impl Prepared {
     }
 }
 
-/// The rough GGX conductor in float32 lanes: the geometry once, the Fresnel term per channel.
+/// The rough conductor in float32 lanes: the geometry once, the Fresnel term per channel; sampled through its
+/// visible normals.
 struct ConductorLanes {
-    ggx: Ggx,
+    lobe: Lobe,
+    visible: Visible,
     ior: Vec<ConductorIor>,
 }
 
 impl engine::Kernel for ConductorLanes {
     #[inline(always)]
     fn eval(&self, wi: V3, wo: V3, out: &mut [Floats]) {
-        let (geo, cos_h) = lanes::ggx_reflection(&self.ggx, wi, wo);
+        let (geo, cos_h) = self.lobe.reflection(wi, wo);
         for (o, ior) in out.iter_mut().zip(&self.ior) {
             *o = geo * lanes::conductor(cos_h, ior);
         }
@@ -311,7 +313,7 @@ impl engine::Sampler for ConductorLanes {
     fn sample(&self, wo: V3, u: V3, out: &mut [Floats]) {
         use engine::Kernel;
         let (zero, one) = (Floats::splat(0.0), Floats::splat(1.0));
-        let (wi, pdf) = lanes::ggx_sample_reflection(&self.ggx, wo, u.y, u.z);
+        let (wi, pdf) = self.visible.sample(wo, u.y, u.z);
         let above = wo.z.gt(zero);
         let kept = above & wi.z.gt(zero) & pdf.gt(zero);
         let (head, rest) = out.split_at_mut(3);

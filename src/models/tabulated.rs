@@ -27,7 +27,7 @@
 
 use super::common::block::{simd_columns, BLOCK};
 use super::common::mixture::defensive_mixture;
-use super::common::mixture_lanes::{self, proposed_lobe, LaneMixture, Proposals, MAX_TERMS};
+use super::common::mixture_lanes::{self, LaneMixture, Proposals, MAX_TERMS};
 use super::common::options::{microsurface, DISTRIBUTION, G2};
 use super::{microfacet, Field, Gradient, InputSpec, Model, ModelInfo, OptionSpec, Properties, Proposal, Seed};
 use crate::bsdf::rough_dielectric;
@@ -37,7 +37,7 @@ use crate::error::{value_error, Result};
 use crate::models::FitLanes;
 use crate::optics::distribution::{Distribution, G2Form, Microfacet};
 use crate::optics::fresnel::{self, FresnelForm};
-use crate::optics::lanes::{self, Ggx};
+use crate::optics::lanes::{self, Ggx, Visible};
 use crate::stack::{Layer, Stack};
 use crate::tables::adding_doubling::{
     channel_key, node_values, pair, tabulate, Cells, NODES, N_PHI, N_THETA, ORDERS, PAIRS,
@@ -296,7 +296,7 @@ impl Prepared {
 /// zenith node in float32.
 struct Sampled<'a> {
     lanes: Lanes<'a>,
-    lobes: Vec<Ggx>,
+    lobes: Vec<Visible>,
     below: Vec<f32>,
 }
 
@@ -317,7 +317,7 @@ impl Proposals for Sampled<'_> {
         let below = (1.0 - f).mul_add(at(0), f * at(1));
         let mut mix = LaneMixture::new();
         if let Some(top) = self.lanes.top {
-            mix.push(lanes::dielectric(wo.z, self.lanes.p.eta[0]), Some(top));
+            mix.push(lanes::dielectric(wo.z, self.lanes.p.eta[0]), Some(Visible::Ggx(top)));
         }
         let share = below * (1.0 / self.lobes.len().max(1) as f32);
         for lobe in &self.lobes {
@@ -444,9 +444,11 @@ impl Model for Prepared {
 
     fn sample_f32(&self, wo: Rows, u: Rows, out: &mut [f32]) -> bool {
         let Some(lanes) = self.lanes() else { return false };
-        // The inner lobes (all rough) as GGX; None for Beckmann.
-        let lobes: Option<Vec<Ggx>> = self.lobes.iter().map(|mf| proposed_lobe(mf).flatten()).collect();
-        let Some(lobes) = lobes.filter(|l| l.len() + 3 <= MAX_TERMS) else { return false };
+        // The inner lobes, all rough.
+        let lobes: Vec<Visible> = self.lobes.iter().filter_map(Visible::new).collect();
+        if lobes.len() + 3 > MAX_TERMS {
+            return false;
+        }
         let below = self.albedo_below_top.iter().map(|&a| a as f32).collect();
         mixture_lanes::sample(&Sampled { lanes, lobes, below }, self.eta.len(), wo, u, out)
     }

@@ -344,7 +344,8 @@ fn beckmann_sample_slopes(v: DVec3, u1: f64, u2: f64) -> (f64, f64) {
     (cos_phi * x - sin_phi * y, sin_phi * x + cos_phi * y)
 }
 
-/// Inverse error function: Giles 2010 single-precision starting point refined by two Newton steps on libm's erf.
+/// Inverse error function: Giles 2010 single-precision starting point refined by Newton's method on libm's erf, in
+/// the tails (|y| > ½) on ln erfc|x| = ln(1 − |y|), which erf's rounding to ±1 does not blur (1 − |y| is exact there).
 pub fn erf_inv(y: f64) -> f64 {
     let y = y.clamp(-1.0 + 1e-16, 1.0 - 1e-16);
     let w = -((1.0 - y) * (1.0 + y)).ln();
@@ -377,10 +378,24 @@ pub fn erf_inv(y: f64) -> f64 {
         ];
         p.iter().fold(0.0, |acc, &c| acc * w + c) * y
     };
-    for _ in 0..2 {
-        x -= (libm::erf(x) - y) / (2.0 / PI.sqrt() * (-x * x).exp());
+    let slope = |x: f64| std::f64::consts::FRAC_2_SQRT_PI * (-x * x).exp();
+    if y.abs() <= 0.5 {
+        for _ in 0..2 {
+            x -= (libm::erf(x) - y) / slope(x);
+        }
+        return x;
     }
-    x
+    // Giles' fit is made for float32's range; beyond it (1 − |y| < 1e-7) it starts a few percent away.
+    let (target, mut a) = ((1.0 - y.abs()).ln(), x.abs());
+    for _ in 0..8 {
+        let f = libm::erfc(a);
+        let step = (f.ln() - target) * f / slope(a);
+        a += step;
+        if step.abs() <= 1e-15 * a {
+            break;
+        }
+    }
+    a.copysign(y)
 }
 
 #[cfg(test)]
@@ -453,6 +468,12 @@ mod tests {
     fn erf_inv_inverts_erf() {
         for y in [-0.999999, -0.9, -0.3, 0.0, 0.2, 0.77, 0.99999] {
             assert!((libm::erf(erf_inv(y)) - y).abs() < 1e-13, "{y}");
+        }
+        // The tails, to the relative precision of 1 − |y| (exact there), which erf's rounding near ±1 would lose.
+        for tail in [1e-3, 1e-7, 1e-11, 1e-15, 2f64.powi(-53)] {
+            for y in [1.0 - tail, tail - 1.0] {
+                assert!((libm::erfc(erf_inv(y).abs()) / (1.0 - y.abs()) - 1.0).abs() < 1e-12, "{y}");
+            }
         }
     }
 

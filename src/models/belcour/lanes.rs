@@ -8,7 +8,7 @@ use crate::engine::{self, per_lane, Floats, Mask, Rows, LANES, V3};
 use crate::models::common::mixture_lanes::{self, mean, LaneMixture, Proposals, MAX_TERMS};
 use crate::models::FitLanes;
 use crate::optics::distribution::{G2Form, MIN_ALPHA};
-use crate::optics::lanes::{ggx_reflection, Ggx};
+use crate::optics::lanes::{ggx_reflection, Ggx, Visible};
 use crate::tables::node_lanes;
 use std::f32::consts::{FRAC_PI_2, FRAC_PI_4, PI};
 
@@ -215,7 +215,7 @@ impl Proposals for Lanes<'_> {
         for k in 0..t.lobes {
             let values = self.record(&at, k);
             let (ggx, smooth, energy) = self.lobe(&values);
-            mix.push(Floats::select(smooth, zero, mean(energy)), Some(ggx));
+            mix.push(Floats::select(smooth, zero, mean(energy)), Some(Visible::Ggx(ggx)));
         }
         if !t.diffuse.is_empty() {
             let c = self.channels;

@@ -1,23 +1,22 @@
 //! Importance sampling in float32 lanes (mixture.rs's one-sample mixture): a model whose lane kernel also proposes
 //! its mixture in lanes (`Proposals`) samples through `sample`, with no dispatch code of its own. Per lane the same
-//! lobe is picked from u[0] as `mixture::sample_mixture` picks it, the direction is drawn from u[1], u[2] (GGX's visible
-//! normals or the cosine), the pdf is the whole mixture's, and the weight f cos θi / pdf takes the kernel's own f.
+//! lobe is picked from u[0] as `mixture::sample_mixture` picks it, the direction is drawn from u[1], u[2] (GGX's or
+//! Beckmann's visible normals, or the cosine), the pdf is the whole mixture's, and the weight f cos θi / pdf takes the kernel's own f.
 //! Lanes and float64 pick different lobes only where u[0] lies within float32's rounding of a boundary between two
 //! lobes' shares.
 
 use super::mixture::DEFENSIVE;
 use crate::engine::{self, Floats, Kernel, Mask, Rows, V3};
-use crate::optics::distribution::{G2Form, Microfacet};
-use crate::optics::lanes::{cosine_hemisphere, ggx_pdf_reflection, ggx_sample_reflection, Ggx};
+use crate::optics::lanes::{cosine_hemisphere, Visible};
 use std::f32::consts::FRAC_1_PI;
 
 /// Terms a lane mixture holds at the most (a model with more samples on the float64 path).
 pub const MAX_TERMS: usize = 8;
 
 /// A sampling mixture per lane, in the order of the model's `proposals`: each term's weight per lane (0 where the
-/// float64 mixture leaves it out) and its GGX lobe (None: the cosine).
+/// float64 mixture leaves it out) and its lobe (None: the cosine).
 pub struct LaneMixture {
-    terms: [(Floats, Option<Ggx>); MAX_TERMS],
+    terms: [(Floats, Option<Visible>); MAX_TERMS],
     count: usize,
 }
 
@@ -29,7 +28,7 @@ impl LaneMixture {
     /// Appends a term: its weight per lane (negative or NaN taken as 0, as the float64 mixture drops terms without
     /// energy) and its lobe (None: the cosine).
     #[inline(always)]
-    pub fn push(&mut self, weight: Floats, lobe: Option<Ggx>) {
+    pub fn push(&mut self, weight: Floats, lobe: Option<Visible>) {
         debug_assert!(self.count < MAX_TERMS);
         let zero = Floats::splat(0.0);
         self.terms[self.count] = (Floats::select(weight.gt(zero), weight, zero), lobe);
@@ -45,15 +44,6 @@ impl LaneMixture {
     pub fn add_defensive_share(&mut self) {
         let total = self.total();
         self.push(total * (DEFENSIVE / (1.0 - DEFENSIVE)) as f32, None);
-    }
-}
-
-/// The lobe a rough interface of microfacets `mf` proposes to a lane mixture: its GGX visible normals, whatever its
-/// G2 (Some(None) for a smooth interface, which proposes none; None for Beckmann, which the lanes do not sample).
-pub fn proposed_lobe(mf: &Microfacet) -> Option<Option<Ggx>> {
-    match mf.is_smooth() {
-        true => Some(None),
-        false => Ggx::new(mf, G2Form::Separable).map(Some),
     }
 }
 
@@ -109,18 +99,18 @@ impl<K: Proposals> engine::Sampler for Mixture<'_, K> {
             taken = taken | last;
         }
         // The picked lobe's roughness per lane, one visible-normal sample, and the cosine where a cosine was picked.
-        let mut lobe: Option<Ggx> = None;
+        let mut lobe: Option<Visible> = None;
         let mut cosine = Mask::NONE;
         for (&p, (_, g)) in picked.iter().zip(terms) {
             match (g, lobe) {
-                (Some(g), Some(l)) => lobe = Some(Ggx::select(p, g, &l)),
+                (Some(g), Some(l)) => lobe = Some(Visible::select(p, g, &l)),
                 (Some(g), None) => lobe = Some(*g),
                 (None, _) => cosine = cosine | p,
             }
         }
         let diffuse = cosine_hemisphere(u.y, u.z);
         let wi = match &lobe {
-            Some(g) => V3::select(cosine, diffuse, ggx_sample_reflection(g, wo, u.y, u.z).0),
+            Some(g) => V3::select(cosine, diffuse, g.sample(wo, u.y, u.z).0),
             None => diffuse,
         };
         // A wo below the surface samples the normal; a lost sample (wi below it) keeps its direction, and the normal
@@ -133,7 +123,7 @@ impl<K: Proposals> engine::Sampler for Mixture<'_, K> {
         let mut pdf = zero;
         for (w, g) in terms {
             let lobe_pdf = match g {
-                Some(g) => ggx_pdf_reflection(g, wi, wo),
+                Some(g) => g.pdf(wi, wo),
                 None => wi.z * FRAC_1_PI,
             };
             pdf = w.mul_add(lobe_pdf, pdf);

@@ -5,11 +5,11 @@
 //! The same arithmetic as `Walk::eval_group`, for the stacks the lanes cover (`LaneWalk::new`); the others stay
 //! on the float64 path.
 
-use super::mixture_lanes::{mean, proposed_lobe, LaneMixture, MAX_TERMS};
+use super::mixture_lanes::{mean, LaneMixture, MAX_TERMS};
 use super::single_pass::{shared_eta, SpLayer, Walk};
 use crate::engine::{Floats, Mask, V3};
 use crate::optics::fresnel::FresnelForm;
-use crate::optics::lanes::{conductor, dielectric, sin_theta, ConductorIor, Ggx, Lobe};
+use crate::optics::lanes::{conductor, dielectric, sin_theta, ConductorIor, Lobe, Visible};
 
 /// Channels the lanes carry at the most: more (spectral stacks) run on the float64 path.
 pub const MAX_CHANNELS: usize = 8;
@@ -58,7 +58,7 @@ pub struct LaneWalk {
     channels: usize,
     /// Per layer the GGX lobe its interface proposes to the sampling mixture (None: smooth, or no interface), where
     /// the lanes sample the walk (`proposals`): None with a Beckmann interface or more terms than MAX_TERMS.
-    sampled: Option<Vec<Option<Ggx>>>,
+    sampled: Option<Vec<Option<Visible>>>,
 }
 
 impl LaneWalk {
@@ -108,14 +108,14 @@ impl LaneWalk {
             })
         };
         let layers = walk.layers.iter().map(lane_layer).collect::<Option<Vec<_>>>()?;
-        let sampled = |layer: &SpLayer| layer.interface().map_or(Some(None), |iface| proposed_lobe(&iface.mf));
+        let sampled = |layer: &SpLayer| layer.interface().and_then(|iface| Visible::new(&iface.mf));
         let terms = |layer: &LaneLayer| match layer {
             LaneLayer::Dielectric { lobe, .. } => 1 + lobe.is_some() as usize,
             LaneLayer::Conductor { lobe, .. } => lobe.is_some() as usize,
             LaneLayer::Diffuse { .. } => 1,
         };
-        let sampled = walk.layers.iter().map(sampled).collect::<Option<Vec<_>>>();
-        let sampled = sampled.filter(|_| layers.iter().map(terms).sum::<usize>() < MAX_TERMS);
+        let sampled = walk.layers.iter().map(sampled).collect();
+        let sampled = (layers.iter().map(terms).sum::<usize>() < MAX_TERMS).then_some(sampled);
         Some(LaneWalk { layers, channels, sampled })
     }
 
