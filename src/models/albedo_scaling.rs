@@ -232,7 +232,7 @@ enum LaneInterface {
 /// Albedo scaling in float32 lanes (`Prepared::eval`, term by term).
 struct Lanes {
     interfaces: Vec<LaneInterface>,
-    /// Per interface the GGX lobe it proposes to the sampling mixture (None: smooth); None where the mixture has more
+    /// Per interface the lobe it proposes to the sampling mixture (None: smooth); None where the mixture has more
     /// than MAX_TERMS terms.
     sampled: Option<Vec<Option<Visible>>>,
     /// ρ/π per channel of a Lambertian base (empty: no diffuse base).

@@ -292,8 +292,8 @@ impl Prepared {
     }
 }
 
-/// The kernel with what its sampling mixture needs in lanes: the inner lobes as GGX and the albedo below the top per
-/// zenith node in float32.
+/// The kernel with what its sampling mixture needs in lanes: the inner lobes' visible normals and the albedo below
+/// the top per zenith node in float32.
 struct Sampled<'a> {
     lanes: Lanes<'a>,
     lobes: Vec<Visible>,

@@ -1,7 +1,8 @@
 //! Importance sampling in float32 lanes (mixture.rs's one-sample mixture): a model whose lane kernel also proposes
 //! its mixture in lanes (`Proposals`) samples through `sample`, with no dispatch code of its own. Per lane the same
 //! lobe is picked from u[0] as `mixture::sample_mixture` picks it, the direction is drawn from u[1], u[2] (GGX's or
-//! Beckmann's visible normals, or the cosine), the pdf is the whole mixture's, and the weight f cos θi / pdf takes the kernel's own f.
+//! Beckmann's visible normals, or the cosine), the pdf is the whole mixture's, and the weight f cos θi / pdf takes
+//! the kernel's own f.
 //! Lanes and float64 pick different lobes only where u[0] lies within float32's rounding of a boundary between two
 //! lobes' shares.
 

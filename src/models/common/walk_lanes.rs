@@ -56,8 +56,8 @@ enum LaneLayer {
 pub struct LaneWalk {
     layers: Vec<LaneLayer>,
     channels: usize,
-    /// Per layer the GGX lobe its interface proposes to the sampling mixture (None: smooth, or no interface), where
-    /// the lanes sample the walk (`proposals`): None with a Beckmann interface or more terms than MAX_TERMS.
+    /// Per layer the lobe its interface proposes to the sampling mixture (None: smooth, or no interface), where the
+    /// lanes sample the walk (`proposals`): None with more terms than MAX_TERMS.
     sampled: Option<Vec<Option<Visible>>>,
 }
 
