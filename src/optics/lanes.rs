@@ -264,13 +264,7 @@ pub fn ggx_reflection(g: &Ggx, wi: V3, wo: V3) -> (Floats, Floats) {
 #[inline(always)]
 pub fn ggx_sample_reflection(g: &Ggx, wo: V3, u1: Floats, u2: Floats) -> (V3, Floats) {
     let (zero, one) = (Floats::splat(0.0), Floats::splat(1.0));
-    let v = match g.frame {
-        Some((c, s)) => wo.rotate(c, s),
-        None => wo,
-    };
-    let (ax, ay) = (g.ax2.sqrt(), g.ay2.sqrt());
-    let vh = V3 { x: ax * v.x, y: ay * v.y, z: v.z };
-    let vh = vh.scale(1.0 / vh.dot(vh).sqrt());
+    let (v, vh, ax, ay) = stretched(g, wo);
     // The orthonormal basis (t1, t2, vh); t1 = x̂ where vh is the normal.
     let len2 = vh.x.mul_add(vh.x, vh.y * vh.y);
     let has = len2.gt(zero);
@@ -289,12 +283,31 @@ pub fn ggx_sample_reflection(g: &Ggx, wo: V3, u1: Floats, u2: Floats) -> (V3, Fl
     // D(m) = 1 / (π αx αy (mx²/αx² + my²/αy² + mz²)²).
     let q = (m.x * m.x).mul_add(g.inv_ax2, (m.y * m.y).mul_add(g.inv_ay2, m.z * m.z));
     let pdf = g.norm / (q * q * 2.0 * (v.z + smith_sigma(g, v)));
+    (reflected(g, v, m), pdf)
+}
+
+/// wo in the interface's frame (v), and stretched to the standard configuration of unit roughness, (αx vx, αy vy, vz)
+/// normalised, with αx and αy: where both distributions' visible-normal samplers start (Heitz 2018, Heitz & d'Eon
+/// 2014).
+#[inline(always)]
+fn stretched(g: &Ggx, wo: V3) -> (V3, V3, Floats, Floats) {
+    let v = match g.frame {
+        Some((c, s)) => wo.rotate(c, s),
+        None => wo,
+    };
+    let (ax, ay) = (g.ax2.sqrt(), g.ay2.sqrt());
+    let vh = V3 { x: ax * v.x, y: ay * v.y, z: v.z };
+    (v, vh.scale(1.0 / vh.dot(vh).sqrt()), ax, ay)
+}
+
+/// v (in the interface's frame) reflected about the unit normal m, 2 (v·m) m − v, and rotated back out of the frame.
+#[inline(always)]
+fn reflected(g: &Ggx, v: V3, m: V3) -> V3 {
     let wi = (m.scale(2.0 * v.dot(m))).plus(v.scale(Floats::splat(-1.0)));
-    let wi = match g.frame {
+    match g.frame {
         Some((c, s)) => wi.rotate(c, -s),
         None => wi,
-    };
-    (wi, pdf)
+    }
 }
 
 /// The pdf per unit solid angle of wi under GGX's visible-normal sampling for wo, D_wo(h) / (4 wo·h) =
@@ -378,21 +391,10 @@ fn beckmann_lambda(b: &Ggx, w: V3) -> Floats {
 /// rounding of the reflection into 3e-4 of the pdf at α = 0.05).
 #[inline(always)]
 pub fn beckmann_sample_reflection(b: &Ggx, wo: V3, u1: Floats, u2: Floats) -> (V3, Floats) {
-    let v = match b.frame {
-        Some((c, s)) => wo.rotate(c, s),
-        None => wo,
-    };
-    let (ax, ay) = (b.ax2.sqrt(), b.ay2.sqrt());
-    let vh = V3 { x: ax * v.x, y: ay * v.y, z: v.z };
-    let vh = vh.scale(1.0 / vh.dot(vh).sqrt());
+    let (v, vh, ax, ay) = stretched(b, wo);
     let (sx, sy) = beckmann_slopes(vh, u1, u2);
     let m = V3 { x: -(ax * sx), y: -(ay * sy), z: Floats::splat(1.0) };
-    let m = m.scale(1.0 / m.dot(m).sqrt());
-    let wi = (m.scale(2.0 * v.dot(m))).plus(v.scale(Floats::splat(-1.0)));
-    let wi = match b.frame {
-        Some((c, s)) => wi.rotate(c, -s),
-        None => wi,
-    };
+    let wi = reflected(b, v, m.scale(1.0 / m.dot(m).sqrt()));
     (wi, beckmann_pdf_reflection(b, wi, wo))
 }
 
@@ -456,8 +458,7 @@ fn beckmann_slope_cdf(x: Floats, c: Floats) -> Floats {
 
 /// The pdf per unit solid angle of wi under Beckmann's visible-normal sampling for wo, D_wo(h) / (4 wo·h) =
 /// D(h) G1(wo) / (4 cos θo) (mixture::lobe_pdf; Walter et al. 2007 eq. 14, Heitz 2018 eq. 3), D from h = wi + wo
-/// unnormalised, exp(−(hx²/αx² + hy²/αy²) / hz²) |h|⁴ / (π αx αy hz⁴) (eq. 25), and G1 = 1 / (1 + Λ(wo)); for wo and wi
-/// above the surface.
+/// unnormalised (`beckmann_d`), and G1 = 1 / (1 + Λ(wo)); for wo and wi above the surface.
 #[inline(always)]
 pub fn beckmann_pdf_reflection(b: &Ggx, wi: V3, wo: V3) -> Floats {
     let h = wi.plus(wo);
@@ -467,9 +468,16 @@ pub fn beckmann_pdf_reflection(b: &Ggx, wi: V3, wo: V3) -> Floats {
     };
     let (h2, z2) = (h.dot(h), h.z * h.z);
     let slope = (h.x * h.x).mul_add(b.inv_ax2, h.y * h.y * b.inv_ay2);
+    beckmann_d(slope, z2, h2, b.norm) / (4.0 * wo.z * (1.0 + beckmann_lambda(b, wo)))
+}
+
+/// Beckmann's D(h) from h unnormalised, exp(−(hx²/αx² + hy²/αy²) / hz²) |h|⁴ / (π αx αy hz⁴) (Walter et al. 2007
+/// eq. 25), given slope = hx²/αx² + hy²/αy², hz², |h|² and 1 / (π αx αy); 0 where the exponential underflows (not
+/// 0 · ∞ for hz → 0).
+#[inline(always)]
+fn beckmann_d(slope: Floats, z2: Floats, h2: Floats, norm: Floats) -> Floats {
     let e = (-(slope / z2)).exp();
-    let d = Floats::and(e.gt(Floats::splat(0.0)), e * (h2 * h2 * b.norm / (z2 * z2)));
-    d / (4.0 * wo.z * (1.0 + beckmann_lambda(b, wo)))
+    Floats::and(e.gt(Floats::splat(0.0)), e * (h2 * h2 * norm / (z2 * z2)))
 }
 
 /// A cosine-weighted direction on the upper hemisphere from two uniform numbers (sampling::cosine_hemisphere: Malley's
@@ -548,9 +556,7 @@ pub fn v_cavity_reflection(v: &VCavity, wi: V3, wo: V3) -> (Floats, Floats) {
     let slope = (h.x * h.x).mul_add(Floats::splat(v.inv_ax2), h.y * h.y * v.inv_ay2);
     let z2 = h.z * h.z;
     let d = if v.beckmann {
-        // Where the exponential underflows, D is 0 (not 0 · ∞ for hz → 0).
-        let e = (-(slope / z2)).exp();
-        Floats::and(e.gt(Floats::splat(0.0)), e * (h2 * h2 * v.norm / (z2 * z2)))
+        beckmann_d(slope, z2, h2, Floats::splat(v.norm))
     } else {
         let s = slope + z2;
         h2 * h2 * v.norm / (s * s)
@@ -563,9 +569,8 @@ pub fn v_cavity_reflection(v: &VCavity, wi: V3, wo: V3) -> (Floats, Floats) {
 }
 
 /// D(h) G2 / (4 cos θi cos θo) and wi·h for Beckmann normals with a Smith G2 (bsdf::reflection_geometry); 0 unless
-/// both directions are above. D from h = wi + wo unnormalised (eq. 25 of Walter et al. 2007, as in
-/// `beckmann_pdf_reflection`); G2 = 1 / ((1 + Λi)(1 + Λo)) separable, 1 / (1 + Λi + Λo) height-correlated (Heitz 2014
-/// eqs. 98, 99), Λ by `beckmann_lambda`.
+/// both directions are above. D from h = wi + wo unnormalised (`beckmann_d`); G2 = 1 / ((1 + Λi)(1 + Λo)) separable,
+/// 1 / (1 + Λi + Λo) height-correlated (Heitz 2014 eqs. 98, 99), Λ by `beckmann_lambda`.
 #[inline(always)]
 pub fn beckmann_reflection(b: &Ggx, wi: V3, wo: V3) -> (Floats, Floats) {
     let (zero, one) = (Floats::splat(0.0), Floats::splat(1.0));
@@ -577,8 +582,7 @@ pub fn beckmann_reflection(b: &Ggx, wi: V3, wo: V3) -> (Floats, Floats) {
     };
     let (h2, z2) = (h.dot(h), h.z * h.z);
     let slope = (h.x * h.x).mul_add(b.inv_ax2, h.y * h.y * b.inv_ay2);
-    let e = (-(slope / z2)).exp();
-    let d = Floats::and(e.gt(zero), e * (h2 * h2 * b.norm / (z2 * z2)));
+    let d = beckmann_d(slope, z2, h2, b.norm);
     let (li, lo) = (beckmann_lambda(b, wi), beckmann_lambda(b, wo));
     let masking = if b.height_correlated { one + li + lo } else { (one + li) * (one + lo) };
     (Floats::and(above, d / (4.0 * wi.z * wo.z * masking)), 0.5 * h2.sqrt())
