@@ -341,22 +341,14 @@ pub(crate) fn zenith_node_lanes(w: V3, n: usize) -> ([u32; LANES], Floats) {
     let (zero, one) = (Floats::splat(0.0), Floats::splat(1.0));
     let z = w.z.max(zero);
     let x = (w.x.mul_add(w.x, w.y * w.y) / (1.0 + z)).sqrt().min(one);
-    let (top, m) = (n as i32 - 1, (n - 1) as f32);
-    let (s, t) = (x * m, z / (1.0 + x) * m);
+    let top = Floats::splat((n - 1) as f32);
+    let (s, t) = (x * top, z / (1.0 + x) * top);
     let near_top = x.gt(Floats::splat(0.5));
-    // A plain loop (not array::from_fn, whose closures were compiled outside the AVX2 row loop).
-    let (mut node, mut f) = ([0u32; LANES], Floats::splat(0.0));
-    for (l, (node, f)) in node.iter_mut().zip(&mut f.0).enumerate() {
-        let below = (s.0[l] as i32).min(top - 1);
-        // ⌈t⌉ through i32 conversions (t ≥ 0), at least 1: the upper node counted from the top.
-        let k = t.0[l] as i32;
-        let above = (k + ((k as f32) < t.0[l]) as i32).clamp(1, top);
-        (*node, *f) = match near_top.0[l] != 0 {
-            true => ((top - above) as u32, above as f32 - t.0[l]),
-            false => (below as u32, s.0[l] - below as f32),
-        };
-    }
-    (node, f.max(zero).min(one))
+    let below = s.min(top - 1.0).floor();
+    // ⌈t⌉, at least 1: the upper node counted from the top.
+    let above = t.ceil().max(one).min(top);
+    let (node, _) = Floats::select(near_top, top - above, below).floor_index();
+    (node, Floats::select(near_top, above - t, s - below).max(zero).min(one))
 }
 
 impl engine::Kernel for Lanes<'_> {

@@ -12,7 +12,7 @@ pub mod steinberg;
 pub use fgd::fgd;
 
 use crate::dual::Real;
-use crate::engine::{per_lane, Floats, LANES};
+use crate::engine::{Floats, LANES};
 use crate::error::Result;
 use crate::optics::distribution::Microfacet;
 use glam::DVec3;
@@ -81,9 +81,8 @@ pub fn node(x: f64, n: usize) -> (usize, f64) {
 #[inline(always)]
 pub fn node_lanes(x: Floats, n: usize) -> ([u32; LANES], Floats) {
     let s = x.max(Floats::splat(0.0)).min(Floats::splat(1.0)) * (n - 1) as f32;
-    // Through i32, which converts in lanes (cvttps2dq); s ≥ 0, so the cast loses nothing.
-    let i: [u32; LANES] = per_lane(|l| (s.0[l] as i32).min(n as i32 - 2) as u32);
-    (i, s - Floats(per_lane(|l| i[l] as i32 as f32)))
+    let (i, below) = s.min(Floats::splat((n - 2) as f32)).floor_index();
+    (i, s - below)
 }
 
 /// Value i of the records of `width` values at nodes k and k + 1 per lane, linear between them by the fractions

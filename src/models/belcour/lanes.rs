@@ -4,7 +4,7 @@
 
 use super::table::LobeTable;
 use super::Prepared;
-use crate::engine::{self, per_lane, Floats, Mask, Rows, LANES, V3};
+use crate::engine::{self, Floats, Mask, Rows, LANES, V3};
 use crate::models::common::mixture_lanes::{self, mean, LaneMixture, Proposals, MAX_TERMS};
 use crate::models::FitLanes;
 use crate::optics::distribution::{G2Form, MIN_ALPHA};
@@ -74,8 +74,8 @@ fn corners(t: &TableF32, cos: Floats, x: Floats, y: Floats) -> Corners {
     }
     let n = t.azimuths as u32;
     let v = pseudo_angle(x, y) * (n as f32 / PI);
-    let a: [u32; LANES] = per_lane(|l| (v.0[l] as i32).clamp(0, n as i32 - 1) as u32);
-    let fa = v - Floats(per_lane(|l| a[l] as i32 as f32));
+    let (a, below) = v.max(Floats::splat(0.0)).min(Floats::splat((n - 1) as f32)).floor_index();
+    let fa = v - below;
     let b = a.map(|a| if a + 1 == n { 0 } else { a + 1 });
     Corners {
         index: [run(&k, 0, n, &a), run(&k, 1, n, &a), run(&k, 0, n, &b), run(&k, 1, n, &b)],
