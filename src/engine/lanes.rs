@@ -526,6 +526,27 @@ mod tests {
     }
 
     #[test]
+    fn floor_index_and_pow2_are_the_integer_casts() {
+        // floor_index against Rust's cast over [0, 2²³): every 16th float32 of [0, 1] and of [1, 2²³), a value just
+        // below each integer up to 2¹⁶, and 2²³ − ½; pow2 against powi over its whole range of normal results.
+        let below: Vec<f32> = (1..1u32 << 16).map(|k| f32::from_bits((k as f32).to_bits() - 1)).collect();
+        let spread = (0..0x3f80_0000u32).step_by(16).chain((0x3f80_0000..0x4b00_0000).step_by(16)).map(f32::from_bits);
+        let xs: Vec<f32> = spread.chain(below).chain([8_388_607.5]).collect();
+        for chunk in xs.chunks(LANES) {
+            let x = Floats(std::array::from_fn(|l| chunk[l % chunk.len()]));
+            let (index, floor) = x.floor_index();
+            for ((&i, &f), &x) in index.iter().zip(&floor.0).zip(&x.0) {
+                assert_eq!((i, f), (x as u32, x.floor()), "x = {x}");
+            }
+        }
+        for k in -126..=127 {
+            assert_eq!(pow2(Floats::splat(k as f32)).0[0], 2f32.powi(k), "k = {k}");
+        }
+        assert_eq!(pow2(Floats::splat(-127.0)).0[0], 0.0);
+        assert_eq!(pow2(Floats::splat(128.0)).0[0], f32::INFINITY);
+    }
+
+    #[test]
     fn clamps_of_nan_give_the_bound() {
         let nan = Floats::splat(f32::NAN);
         assert_eq!(nan.max(Floats::splat(0.0)).0[0], 0.0);
