@@ -220,7 +220,7 @@ pub fn prepare(stack: &Stack, opts: &Options) -> Result<Prepared> {
     };
     if opts.interpolated {
         let t = p.tabulate();
-        p.table_f32 = lanes::TableF32::new(&p, &t);
+        p.table_f32 = Some(lanes::TableF32::new(&p, &t));
         p.table = Some(t);
     }
     Ok(p)
