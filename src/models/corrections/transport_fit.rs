@@ -14,7 +14,7 @@
 //! the stack as prepared, so per-element inputs (flakes, the patina mask) raise a ValueError with it. The GPU applies
 //! the same fit after the model's own f (gpu/shaders/fit.wgsl, `gpu_values`).
 
-use crate::engine::{self, Floats, Rows, LANES, V3};
+use crate::engine::{self, per_lane, Floats, Rows, LANES, V3};
 use crate::error::{value_error, Result};
 use crate::models::common::block::simd_columns;
 use crate::models::common::mixture::DEFENSIVE;
@@ -189,29 +189,33 @@ pub struct FitLanes<'a> {
 impl engine::Correction for FitLanes<'_> {
     #[inline(always)]
     fn apply(&self, wi: V3, wo: V3, f: &mut [Floats]) {
-        let zero = Floats::splat(0.0);
-        let ((i, fi), (o, fo)) = (zenith_node_lanes(wi, NODES), zenith_node_lanes(wo, NODES));
+        let (zero, one) = (Floats::splat(0.0), Floats::splat(1.0));
+        let ((i, u), (o, v)) = (zenith_node_lanes(wi, NODES), zenith_node_lanes(wo, NODES));
         let above = wi.z.gt(zero) & wo.z.gt(zero);
         let width = 2 * self.channels;
-        // Lane by lane, the four corners' records read whole (s and a of every channel side by side).
-        for l in (0..LANES).filter(|&l| above.0[l] != 0) {
-            let (u, v) = (fi.0[l], fo.0[l]);
-            let at = (i[l] as usize * NODES + o[l] as usize) * width;
-            let corners = [
-                (at, (1.0 - u) * (1.0 - v)),
-                (at + width, (1.0 - u) * v),
-                (at + NODES * width, u * (1.0 - v)),
-                (at + (NODES + 1) * width, u * v),
-            ];
-            for (c, f) in f.iter_mut().enumerate() {
-                let (mut s, mut a) = (0.0f32, 0.0f32);
-                for &(k, w) in &corners {
-                    (s, a) = (self.fit[k + 2 * c].mul_add(w, s), self.fit[k + 2 * c + 1].mul_add(w, a));
-                }
-                f.0[l] = s.mul_add(f.0[l], a);
+        // The four corners' offsets from the lower one, and their bilinear weights.
+        let offsets = [0, width, NODES * width, (NODES + 1) * width];
+        let weights = [(one - u) * (one - v), (one - u) * v, u * (one - v), u * v];
+        let at: [usize; LANES] = per_lane(|l| (i[l] as usize * NODES + o[l] as usize) * width);
+        debug_assert!(at.iter().all(|&k| k + (NODES + 1) * width + width <= self.fit.len()));
+        for (c, f) in f.iter_mut().enumerate() {
+            let (mut s, mut a) = (zero, zero);
+            for (&offset, &w) in offsets.iter().zip(&weights) {
+                let (gs, ga) = (gather(self.fit, &at, offset + 2 * c), gather(self.fit, &at, offset + 2 * c + 1));
+                (s, a) = (w.mul_add(gs, s), w.mul_add(ga, a));
             }
+            *f = Floats::select(above, s.mul_add(*f, a), *f);
         }
     }
+}
+
+/// fit[at[l] + k] per lane l. (A function, not a closure: a closure may be compiled outside the row loop's
+/// instruction set.)
+#[inline(always)]
+fn gather(fit: &[f32], at: &[usize; LANES], k: usize) -> Floats {
+    // SAFETY: zenith_node_lanes's nodes are at most NODES − 2 for every direction, so each corner's record (2 ·
+    // channels values at node pair (i + 1, o + 1) at the most) lies inside `fit` (`apply`'s debug_assert).
+    Floats(per_lane(|l| unsafe { *fit.get_unchecked(at[l] + k) }))
 }
 
 impl Model for TransportFit {
