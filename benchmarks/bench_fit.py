@@ -72,6 +72,15 @@ def main() -> None:
             f"| belcour eval_grad, 4 parameters (float64) | {g / m * 1e9:.1f} | {what} (float64) | {e / m * 1e9:.1f} "
             f"| {g / e:.2f} | ≤ 5 |"
         )
+    # The single-pass walks and albedo scaling in Duals, per pair, against their float64 evaluation.
+    for model in ("steinberg", "weidlich_wilkie", "albedo_scaling"):
+        g, e = medians(
+            lambda m=model: coated.eval_grad(wi, wo, m, **at4), lambda m=model: coated.bind(**at4).eval(wi, wo, m)
+        )
+        lines.append(
+            f"| {model} eval_grad, 4 parameters (float64) | {g / N * 1e9:.1f} | eval (float64) | {e / N * 1e9:.1f} "
+            f"| {g / e:.2f} | ≤ 5 |"
+        )
     # tabulated's gradient solves the stack again in Duals: its cost is the solve's, against the f64 solve (the
     # precomputation of `eval`'s first call on a new stack). Each call at new values, so that no cache answers.
     slab = Stack(

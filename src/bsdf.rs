@@ -2,21 +2,32 @@
 //! dielectric) and rough dielectric transmission (Walter et al. 2007), from either side. All return f without
 //! the cosine; directions point away from the surface (docs/conventions.md).
 
-use crate::dual::{dir, dot, normalize, value, Real};
+use crate::dual::{dir, dot, normalize, value, Dir, Real, With};
 use crate::optics::distribution::{G2Form, Microfacet};
 use crate::optics::fresnel;
 use glam::DVec3;
 
 /// Microfacet reflection without the Fresnel factor: D(h) G2 / (4 |cos θi| |cos θo|) and the cosine wi·h that
-/// the Fresnel factor takes (Cook–Torrance 1982; Walter et al. 2007 eq. 20). Same-side directions only.
+/// the Fresnel factor takes (Cook–Torrance 1982; Walter et al. 2007 eq. 20). Same-side directions only. The
+/// directions are f64, or Duals where a parameter moves them (a single-pass walk's refracted directions).
 #[inline(always)]
-pub fn reflection_geometry<T: Real>(mf: &Microfacet<T>, form: G2Form, wi: DVec3, wo: DVec3) -> Option<(T, f64)> {
+pub fn reflection_geometry<T, C>(
+    mf: &Microfacet<T>,
+    form: G2Form,
+    wi: impl Into<Dir<C>>,
+    wo: impl Into<Dir<C>>,
+) -> Option<(T, C)>
+where
+    C: Real,
+    T: With<C> + From<C>,
+{
+    let (wi, wo) = (wi.into(), wo.into());
     // Computed first and selected last (no early return), so that loops over it vectorize.
-    let h = (wi + wo).normalize();
-    let h = if h.z < 0.0 { -h } else { h };
-    let g = mf.g2(form, wi, wo, h);
-    let geo = mf.d(h) * g / (4.0 * (wi.z * wo.z).abs());
-    (wi.z * wo.z > 0.0 && !mf.is_smooth() && g.value() != 0.0).then_some((geo, wi.dot(h)))
+    let h = normalize([wi[0] + wo[0], wi[1] + wo[1], wi[2] + wo[2]]);
+    let h = if h[2].value() < 0.0 { h.map(|x| -x) } else { h };
+    let g = mf.g2_at(form, wi, wo, h);
+    let geo = mf.d(h) * g / ((wi[2] * wo[2]).abs() * 4.0);
+    ((wi[2] * wo[2]).value() > 0.0 && !mf.is_smooth() && g.value() != 0.0).then_some((geo, dot(wi, h)))
 }
 
 /// Rough conductor BRDF F(wi·h) D G2 / (4 cos θi cos θo) with the exact conductor Fresnel of η + iκ.

@@ -31,6 +31,8 @@ pub trait Real:
     fn sin_cos(self) -> (Self, Self);
     /// max(self, floor), floor a constant.
     fn max_c(self, floor: f64) -> Self;
+    /// min(self, ceiling), ceiling a constant (NaN gives the ceiling, as f64::min).
+    fn min_c(self, ceiling: f64) -> Self;
     /// self clamped to the constants [lo, hi].
     fn clamp_c(self, lo: f64, hi: f64) -> Self;
     fn abs(self) -> Self;
@@ -67,6 +69,10 @@ impl Real for f64 {
     #[inline(always)]
     fn max_c(self, floor: f64) -> f64 {
         self.max(floor)
+    }
+    #[inline(always)]
+    fn min_c(self, ceiling: f64) -> f64 {
+        self.min(ceiling)
     }
     #[inline(always)]
     fn clamp_c(self, lo: f64, hi: f64) -> f64 {
@@ -272,6 +278,13 @@ impl<const N: usize> Real for Dual<N> {
             self
         } else {
             Dual::from(floor)
+        }
+    }
+    fn min_c(self, ceiling: f64) -> Self {
+        if self.v <= ceiling {
+            self
+        } else {
+            Dual::from(ceiling)
         }
     }
     fn clamp_c(self, lo: f64, hi: f64) -> Self {

@@ -43,12 +43,17 @@ def _check(template: Stack, values: dict, wi, wo, model: str = "microfacet", **o
     # piecewise multilinear: where one of its nodes lies within h, the central difference averages two slopes (it
     # then moves with h: compared with h/10's) while the gradient is the one-sided slope at the point; those
     # entries (measured: under 0.5%) are left out.
+    # Where f curves strongly (albedo_scaling's second coat's IOR, which also moves the metal's relative η and κ in
+    # the FGD table: the step's O(h²) truncation reached 8e-6 of the gradient at h = 1e-5), the difference of step
+    # h/10, 100 times smaller in truncation, may agree instead (measured there: 1e-7).
     noise = lambda h: 1e-13 * np.abs(f)[..., None] / h  # noqa: E731
     fd = _central(template, values, wi, wo, model, h=1e-5, **exact, **options)
     fd10 = _central(template, values, wi, wo, model, h=1e-6, **exact, **options)
     kink = np.abs(fd - fd10) > 1e-5 * np.abs(fd) + noise(1e-6)
     assert kink.mean() < 0.01, kink.mean()
-    assert np.all(np.abs(grad - fd)[~kink] <= (1e-5 * np.abs(fd) + noise(1e-5))[~kink])
+    agree = np.abs(grad - fd) <= 1e-5 * np.abs(fd) + noise(1e-5)
+    agree |= np.abs(grad - fd10) <= 1e-5 * np.abs(fd10) + noise(1e-6)
+    assert np.all(agree[~kink])
     return grad
 
 
@@ -81,7 +86,14 @@ def test_a_rough_conductor_s_gradients_are_its_central_differences(rng):
         grad = _check(template, values, wi, wo)
         assert np.all(grad[..., 1, 1:3] == 0.0)  # κ of the green channel is not a parameter
     assert set(models()[0].gradients) >= {"ior", "k", "roughness_x", "roughness_y", "angle", "albedo"}
-    assert {m.name for m in models() if m.gradients} == {"microfacet", "belcour", "tabulated"}
+    assert {m.name for m in models() if m.gradients} == {
+        "microfacet",
+        "belcour",
+        "tabulated",
+        "steinberg",
+        "weidlich_wilkie",
+        "albedo_scaling",
+    }
 
 
 def test_belcour_s_gradients_are_its_central_differences(rng):
@@ -148,6 +160,95 @@ def test_belcour_s_gradients_are_its_central_differences(rng):
         cases[0][0].eval_grad(wi, wo, "belcour", tir="fraction")
     with pytest.raises(ValueError, match=r"transport_fit \(the improved variants\) has no parameter gradients"):
         cases[0][0].eval_grad(wi, wo, "belcour", variant="improved")
+
+
+def test_single_pass_gradients_are_their_central_differences(rng):
+    """Steinberg and Weidlich–Wilkie: their walk in Duals (models/common/single_pass.rs `eval_real`), through every
+    passage's refraction (a coat's IOR moves the directions beneath it), Beer–Lambert, Elek's roughness clamp (a
+    rough coat's roughness then moves the metal's lobe), the V-cavity and Smith masking, Oren–Nayar, Steinberg's
+    tables (their interpolants, and the fitted closed forms) at the projected roughness of an anisotropic coat, and
+    total internal reflection at a second coat of lower IOR. albedo_scaling: its layers in Duals through OpenPBR's
+    roughening and the FGD table's interpolant. Each f equals Stack.eval's (the same arithmetic, another
+    loop) to 1e-13; each gradient its central differences within 1e-5 (`_check`: away from the kinks of the tables'
+    interpolants, the V-cavity's min and the critical angle, which take under 1% of the entries). Directions down to
+    3° above the horizon. Measured over four seeds: f within 5e-15 of Stack.eval's; the gradients within 1.3e-6
+    relative where they exceed 1e-3 of their largest (albedo_scaling: 9.7e-6 at h = 1e-5, the step's truncation);
+    kinks at most 0.11% of the entries."""
+    coat_over_metal = Stack(
+        [
+            Dielectric(
+                Param("n", 1.2, 2.0),
+                roughness=Param("r", 0.01, 1.0),
+                thickness=Param("t", 0.0, 5.0),
+                sigma_a=(Param("sa", 0.0, 3.0), 0.3, 0.5),
+                sigma_s=Param("ss", 0.0, 3.0),
+            ),
+            Conductor(ior=(0.2, 0.9, 1.1), k=(Param("k", 1.0, 5.0), 2.5, 2.2), roughness=Param("rb", 0.01, 1.0)),
+        ]
+    )
+
+    def metal_values():
+        return dict(
+            n=rng.uniform(1.3, 1.9),
+            r=rng.uniform(0.05, 0.3),
+            t=rng.uniform(0.2, 3),
+            sa=rng.uniform(0, 2),
+            ss=rng.uniform(0.1, 1),
+            k=rng.uniform(2, 4),
+            rb=rng.uniform(0.35, 0.8),
+        )
+
+    aniso_over_diffuse = Stack(
+        [
+            Dielectric(Param("n", 1.2, 2.0), roughness=(Param("ax", 0.01, 1.0), 0.1), angle=Param("phi", -3, 3)),
+            Diffuse((Param("a", 0.0, 1.0), 0.5, 0.3), roughness=Param("sig", 0.0, 1.0)),
+        ]
+    )
+
+    def diffuse_values():
+        return dict(
+            n=rng.uniform(1.3, 1.9),
+            ax=rng.uniform(0.15, 0.6),
+            phi=rng.uniform(-3, 3),
+            a=rng.uniform(0.1, 0.9),
+            sig=rng.uniform(0.1, 0.8),
+        )
+
+    two_coats = Stack(
+        [
+            Dielectric(1.8, roughness=0.2),
+            Dielectric(Param("n2", 1.2, 1.6), roughness=Param("r2", 0.01, 1.0), thickness=0.5, sigma_a=0.4),
+            Conductor(ior=Param("e", 0.1, 3.0), k=3.0, roughness=0.3),
+        ]
+    )
+    wi, wo = random_hemisphere(rng, 300, 0.05), random_hemisphere(rng, 300, 0.05)
+    for model, options in [
+        ("steinberg", {}),
+        ("steinberg", dict(lut="fitted", microfacet_transmission=True, eta2=False)),
+        ("weidlich_wilkie", {}),
+        ("weidlich_wilkie", dict(distribution="ggx", g2="height_correlated", clamp_roughness=False)),
+        ("albedo_scaling", {}),
+        ("albedo_scaling", dict(scaling="view", roughening=False, g2="height_correlated")),
+    ]:
+        for template, values in [
+            (coat_over_metal, metal_values()),
+            (aniso_over_diffuse, diffuse_values()),
+            # r2 above the metal's 0.3: under Elek's clamp it is the metal's roughness too.
+            (two_coats, dict(n2=rng.uniform(1.3, 1.5), r2=rng.uniform(0.35, 0.6), e=rng.uniform(0.2, 1.5))),
+        ]:
+            grad = _check(template, values, wi, wo, model, **options)
+            moved = np.abs(grad).max(axis=(0, 1)) > 0
+            assert moved.all(), (model, options, [p.name for p, m in zip(template.params, moved) if not m])
+    # The HG asymmetry g, which a single pass does not use: gradient 0.
+    slab = Stack([Dielectric(1.5, thickness=1.0, sigma_s=2.0, g=Param("g", -0.9, 0.9)), Diffuse(0.5)])
+    for model in ("steinberg", "weidlich_wilkie", "albedo_scaling"):
+        assert np.all(slab.eval_grad(wi, wo, model, g=0.3)[1] == 0.0)
+    with pytest.raises(ValueError, match="gradients of model 'weidlich_wilkie' take precomputed=False"):
+        coat_over_metal.eval_grad(wi, wo, "weidlich_wilkie", precomputed=True, **metal_values())
+    with pytest.raises(ValueError, match="gradients of model 'steinberg' take fresnel='exact'"):
+        coat_over_metal.eval_grad(wi, wo, "steinberg", fresnel="schlick", **metal_values())
+    with pytest.raises(ValueError, match="take interreflection=False and conductor_interreflection=False"):
+        coat_over_metal.eval_grad(wi, wo, "steinberg", conductor_interreflection=True, **metal_values())
 
 
 def _check_tabulated(template: Stack, values: dict, wi, wo):
@@ -306,8 +407,9 @@ def test_a_diffuse_base_s_gradients_and_a_parameter_f_ignores(rng):
 
 def test_gradients_refuse_what_a_model_does_not_differentiate():
     coated = Stack([Dielectric(Param("n", 1.2, 2.0), roughness=0.2), metal("Cu", 0.3)])
-    with pytest.raises(ValueError, match="model 'steinberg' has no gradient by ior"):
-        coated.eval_grad([0, 0, 1], [0, 0, 1], "steinberg")
+    rough_base = Stack([Dielectric(1.5, roughness=0.2), Diffuse(0.5, roughness=Param("s", 0.0, 1.0))])
+    with pytest.raises(ValueError, match="model 'belcour' has no gradient by diffuse_roughness"):
+        rough_base.eval_grad([0, 0, 1], [0, 0, 1], "belcour")
     with pytest.raises(ValueError, match="this stack has no lamina.Param"):
         Stack([metal("Cu", 0.3)]).eval_grad([0, 0, 1], [0, 0, 1])
     with pytest.raises(ValueError, match=r"the stack is a family over \['n'\]: give each one's values per element"):
@@ -492,22 +594,25 @@ def test_tabulated_agrees_with_iadpython_forward_and_inverse(rng):
 
 def test_fit_models_says_which_models_explain_a_measurement(rng):
     """A rough conductor made by microfacet: every model with gradients fits it (a single layer is belcour's one lobe
-    with its FGD energy, which misses the Fresnel's angular shape; tabulated's single boundary is microfacet's),
-    microfacet and tabulated exactly, belcour last; a layered template (a rough coat) is fitted by tabulated, which
-    recovers its own data's IOR, and by belcour, microfacet skipped with its reason; the table and plot name every
-    model."""
+    with its FGD energy, which misses the Fresnel's angular shape; tabulated's single boundary is microfacet's, and
+    steinberg's single lobe is the same GGX with the exact Fresnel), microfacet, tabulated and steinberg exactly,
+    weidlich_wilkie last (its default Beckmann lobe cannot take GGX's shape); a layered template (a rough coat) is
+    fitted by tabulated, which recovers its own data's IOR, and by the analytic layered models, microfacet skipped
+    with its reason; the table and plot name every model."""
     template = Stack([Conductor(Param("eta", 0.1, 3.0), Param("k", 0.5, 6.0), roughness=Param("alpha", 0.02, 0.9))])
     wi, wo = random_hemisphere(rng, 800, 0.05), random_hemisphere(rng, 800, 0.05)
     data = template.bind(eta=0.9, k=3.0, alpha=0.3).eval(wi, wo, "microfacet")
     result = lamina.fit_models(template, wi, wo, data, starts=2)
-    assert set(result.fits) == {"microfacet", "tabulated", "belcour"} and list(result.fits)[-1] == "belcour", result
-    assert result.fits["microfacet"].residual["0-60"] < 1e-6 and result.fits["tabulated"].residual["0-60"] < 1e-6
+    layered_models = {"tabulated", "belcour", "steinberg", "weidlich_wilkie", "albedo_scaling"}
+    assert set(result.fits) == layered_models | {"microfacet"}, result
+    assert list(result.fits)[-1] == "weidlich_wilkie", result
+    assert all(result.fits[m].residual["0-60"] < 1e-6 for m in ("microfacet", "tabulated", "steinberg")), result
     assert all(c > 0 for c in result.costs.values())
     assert "| microfacet |" in result.table() and "| belcour |" in result.table()
     layered = Stack([Dielectric(Param("eta", 1.2, 2.0), roughness=0.2), Diffuse(0.5)])
     data = layered.bind(eta=1.5).eval(wi, wo, "tabulated")
     result = lamina.fit_models(layered, wi, wo, data, starts=1)
-    assert set(result.fits) == {"tabulated", "belcour"} and "microfacet" in result.skipped
+    assert set(result.fits) == layered_models and "microfacet" in result.skipped
     assert "a single opaque interface" in result.skipped["microfacet"]
     assert abs(result.fits["tabulated"].params["eta"] - 1.5) < 1e-4
     ax = result.plot()

@@ -439,7 +439,7 @@ impl V3 {
         V3 { x: Floats::select(m, a.x, b.x), y: Floats::select(m, a.y, b.y), z: Floats::select(m, a.z, b.z) }
     }
 
-    /// The vector in the tangent frame rotated by the angle of cosine c and sine s about z (optics::to_tangent_frame).
+    /// The vector in the tangent frame rotated by the angle of cosine c and sine s about z (Microfacet's tangent frame, optics/distribution.rs).
     #[inline(always)]
     pub fn rotate(self, c: Floats, s: Floats) -> V3 {
         V3 { x: self.x.mul_add(c, self.y * s), y: self.y.mul_add(c, -(self.x * s)), z: self.z }

@@ -29,15 +29,18 @@ use super::common::block::eval_rows;
 use super::common::mixture::defensive_mixture;
 use super::common::mixture_lanes::{self, mean, LaneMixture, Proposals, MAX_TERMS};
 use super::common::options::{choice, flag, g2};
-use super::common::single_pass::{self, beer_lambert, refracted_up, SpInterface, SpLayer};
+use super::common::single_pass::{self, beer_lambert, refracted_up_real, SpInterface, SpLayer};
 use super::common::walk_lanes::{self, MAX_CHANNELS};
-use super::{Args, InputSpec, Inputs, Model, ModelInfo, OptionSpec, Properties, Proposal};
+use super::{
+    seeded, store, Args, Field, Gradient, InputSpec, Inputs, Model, ModelInfo, OptionSpec, Properties, Proposal, Seed,
+};
 use crate::bsdf;
+use crate::dual::{dir, Dual, Real};
 use crate::engine::{self, Floats, Rows, V3};
 use crate::error::Result;
 use crate::models::FitLanes;
 use crate::optics::distribution::{Distribution, G2Form, Microfacet};
-use crate::optics::fresnel::FresnelForm;
+use crate::optics::fresnel::{self, FresnelForm};
 use crate::optics::lanes::{dielectric_transmittance, ConductorIor, Lobe, Visible};
 use crate::optics::{diffuse, sin_theta};
 use crate::stack::Stack;
@@ -60,7 +63,7 @@ pub const INFO: ModelInfo = ModelInfo {
     ] as &[OptionSpec],
     inputs: &[] as &[InputSpec],
     properties: Properties { reciprocal: true, energy_conserving: true, anisotropic: true, spectral: true },
-    gradients: &[],
+    gradients: &Field::NAMES,
     prepare: |stack, args| Ok(Box::new(prepare(stack, &Options::parse(args)?)?)),
     #[cfg(feature = "gpu")]
     gpu: Some(&gpu::HALF),
@@ -91,104 +94,133 @@ pub struct Prepared {
     pub g2: G2Form,
     pub reciprocal: bool,
     pub channels: usize,
+    /// The stack and the roughening, which the gradient takes in Duals.
+    stack: Stack,
+    roughening: bool,
     /// The float32 kernel, where the lanes cover the stack (`Lanes::new`).
     lanes: Option<Lanes>,
 }
 
 /// OpenPBR's roughening of what lies under a rough coat, r′ = min(1, r⁴ + 2 r_c⁴)^{1/4} in its roughness r = √α,
 /// i.e. α′ = √min(1, α² + 2 α_c²), per tangent axis.
-pub fn roughened(alpha: f64, coat: f64) -> f64 {
-    (alpha * alpha + 2.0 * coat * coat).min(1.0).sqrt()
+pub fn roughened<T: Real>(alpha: T, coat: T) -> T {
+    (alpha * alpha + coat * 2.0 * coat).min_c(1.0).sqrt()
+}
+
+/// OpenPBR's roughening (`roughened`) applied down the stack, each interface against the already roughened one above.
+fn roughen<T: Real>(layers: &mut [SpLayer<T>]) {
+    let mut above: Option<Microfacet<T>> = None;
+    for layer in layers {
+        if let SpLayer::Dielectric { iface, .. } | SpLayer::Conductor { iface, .. } = layer {
+            if let Some(coat) = above.filter(|c| !c.is_smooth()) {
+                let mf = iface.mf;
+                let (ax, ay) = if mf.is_smooth() { (T::from(0.0), T::from(0.0)) } else { (mf.alpha_x, mf.alpha_y) };
+                iface.mf = mf.with_alpha(roughened(ax, coat.alpha_x), roughened(ay, coat.alpha_y));
+            }
+            above = Some(iface.mf);
+        }
+    }
 }
 
 pub fn prepare(stack: &Stack, opts: &Options) -> Result<Prepared> {
     let mut layers = single_pass::layers(stack, Distribution::Ggx, false);
     if opts.roughening {
-        let mut above: Option<Microfacet> = None;
-        for layer in &mut layers {
-            if let SpLayer::Dielectric { iface, .. } | SpLayer::Conductor { iface, .. } = layer {
-                if let Some(coat) = above.filter(|c| !c.is_smooth()) {
-                    let mf = iface.mf;
-                    let (ax, ay) = if mf.is_smooth() { (0.0, 0.0) } else { (mf.alpha_x, mf.alpha_y) };
-                    iface.mf = mf.with_alpha(roughened(ax, coat.alpha_x), roughened(ay, coat.alpha_y));
-                }
-                above = Some(iface.mf);
-            }
-        }
+        roughen(&mut layers);
     }
     tables::fgd(); // generate or load the table outside the parallel evaluation
     let lanes = Lanes::new(&layers, opts, stack.channels);
-    Ok(Prepared { layers, g2: opts.g2, reciprocal: opts.reciprocal, channels: stack.channels, lanes })
+    let (g2, reciprocal, channels, roughening) = (opts.g2, opts.reciprocal, stack.channels, opts.roughening);
+    Ok(Prepared { layers, g2, reciprocal, channels, stack: stack.clone(), roughening, lanes })
+}
+
+/// The gradient of `eval` with respect to N parameters: the roughened layers in Duals, through the FGD table's
+/// interpolant (exact Fresnel, as the model's).
+fn gradient<'a, const N: usize>(p: &'a Prepared, seeds: &[Seed]) -> Result<Gradient<'a>> {
+    let value = |layer: usize, field: Field, channel: usize, v: f64| seeded::<N>(seeds, layer, field, channel, v);
+    let mut layers = single_pass::layers_with(&p.stack, Distribution::Ggx, false, value);
+    if p.roughening {
+        roughen(&mut layers);
+    }
+    Ok(Box::new(move |wi, wo, out| {
+        let mut f = vec![Dual::<N>::from(0.0); p.channels];
+        eval(&layers, p.g2, p.reciprocal, wi, wo, &mut f);
+        f.into_iter().enumerate().for_each(|(c, x)| store(out, c, x));
+    }))
 }
 
 /// Fresnel reflectance of channel c at cosine `cos` (exact dielectric or conductor).
-fn fresnel(i: &SpInterface, cos: f64, c: usize) -> f64 {
-    i.fresnel(FresnelForm::Exact, cos, c)
+fn fresnel<T: Real>(i: &SpInterface<T>, cos: f64, c: usize) -> T {
+    match i.conductor {
+        true => fresnel::conductor(cos, i.eta[c], i.kappa[c]),
+        false => fresnel::dielectric(cos, i.eta[c]),
+    }
 }
 
 /// E(μ): the directional albedo of the interface's lobe (FGD table; the Fresnel reflectance itself when smooth).
-fn albedo(i: &SpInterface, mu: f64, c: usize) -> f64 {
+fn albedo<T: Real>(i: &SpInterface<T>, mu: f64, c: usize) -> T {
     if i.mf.is_smooth() {
         return fresnel(i, mu, c);
     }
     let alpha = (i.mf.alpha_x * i.mf.alpha_y).sqrt();
-    tables::fgd().lookup(mu, alpha, i.eta[c], i.kappa[c])
+    tables::fgd().lookup(T::from(mu), alpha, i.eta[c], i.kappa[c])
 }
 
 /// 1 − E(μ): what the interface's lobe does not reflect (a smooth interface's without cancellation at grazing
 /// incidence, where F → 1).
-fn unreflected(i: &SpInterface, mu: f64, c: usize) -> f64 {
-    if i.mf.is_smooth() {
-        return i.transmittance(FresnelForm::Exact, mu, c);
+fn unreflected<T: Real>(i: &SpInterface<T>, mu: f64, c: usize) -> T {
+    match (i.mf.is_smooth(), i.conductor) {
+        (true, false) => fresnel::dielectric_transmittance(mu, i.eta[c]),
+        (true, true) => T::from(1.0) - fresnel(i, mu, c),
+        (false, _) => T::from(1.0) - albedo(i, mu, c),
     }
-    1.0 - albedo(i, mu, c)
+}
+
+/// The interfaces top to bottom, each with the slab beneath it (thickness, σt per channel); None for the base.
+fn interfaces<T: Real>(layers: &[SpLayer<T>]) -> impl Iterator<Item = (&SpInterface<T>, Option<(T, &[T])>)> {
+    layers.iter().filter_map(|layer| match layer {
+        SpLayer::Dielectric { iface, thickness, sigma_t, .. } => Some((iface, Some((*thickness, &sigma_t[..])))),
+        SpLayer::Conductor { iface, .. } => Some((iface, None)),
+        SpLayer::Diffuse { .. } => None,
+    })
+}
+
+/// The scale S of what lies beneath interface `i` (over its slab) for channel c: 1 − E per direction (of wo alone
+/// unless `reciprocal`) and the slab's Beer–Lambert transmittance along the refracted directions.
+fn scale<T: Real>(i: &SpInterface<T>, slab: (T, &[T]), reciprocal: bool, wi: DVec3, wo: DVec3, c: usize) -> T {
+    let (thickness, sigma_t) = slab;
+    let view = unreflected(i, wo.z, c);
+    let light = if reciprocal { unreflected(i, wi.z, c) } else { T::from(1.0) };
+    let down = |w: DVec3| refracted_up_real(dir::<T>(w), T::from(sin_theta(w)) / i.eta[c])[2];
+    (light * view).max_c(0.0) * beer_lambert(sigma_t[c], thickness, down(wi), down(wo))
+}
+
+/// f(wi, wo) of `layers` per channel into `out`, in f64 or in Duals (the gradient); zero below the horizon.
+fn eval<T: Real>(layers: &[SpLayer<T>], g2: G2Form, reciprocal: bool, wi: DVec3, wo: DVec3, out: &mut [T]) {
+    out.fill(T::from(0.0));
+    if wi.z <= 0.0 || wo.z <= 0.0 {
+        return;
+    }
+    let mut weight = vec![T::from(1.0); out.len()];
+    for (i, slab) in interfaces(layers) {
+        if let Some((geo, cos_h)) = bsdf::reflection_geometry(&i.mf, g2, wi, wo) {
+            for (c, o) in out.iter_mut().enumerate() {
+                *o = *o + weight[c] * geo * fresnel(i, cos_h, c);
+            }
+        }
+        let Some(slab) = slab else { return };
+        for (c, w) in weight.iter_mut().enumerate() {
+            *w = *w * scale(i, slab, reciprocal, wi, wo, c);
+        }
+    }
+    if let Some(SpLayer::Diffuse { albedo, sigma, .. }) = layers.last() {
+        let shape = diffuse::oren_nayar_shape(*sigma, wi, wo);
+        for (c, o) in out.iter_mut().enumerate() {
+            *o = *o + weight[c] * albedo[c] * shape;
+        }
+    }
 }
 
 impl Prepared {
-    /// The interfaces top to bottom, each with the slab beneath it (thickness, σt per channel); None for the base.
-    fn interfaces(&self) -> impl Iterator<Item = (&SpInterface, Option<(f64, &[f64])>)> {
-        self.layers.iter().filter_map(|layer| match layer {
-            SpLayer::Dielectric { iface, thickness, sigma_t, .. } => Some((iface, Some((*thickness, &sigma_t[..])))),
-            SpLayer::Conductor { iface, .. } => Some((iface, None)),
-            SpLayer::Diffuse { .. } => None,
-        })
-    }
-
-    /// The scale S of what lies beneath interface `i` (over its slab) for channel c: 1 − E per direction and the
-    /// slab's Beer–Lambert transmittance along the refracted directions.
-    fn scale(&self, i: &SpInterface, (thickness, sigma_t): (f64, &[f64]), wi: DVec3, wo: DVec3, c: usize) -> f64 {
-        let view = unreflected(i, wo.z, c);
-        let light = if self.reciprocal { unreflected(i, wi.z, c) } else { 1.0 };
-        let down = |w: DVec3| refracted_up(w, sin_theta(w) / i.eta[c]);
-        (light * view).max(0.0) * beer_lambert(sigma_t[c], thickness, down(wi), down(wo))
-    }
-
-    /// f(wi, wo) per channel into `out`; zero below the horizon.
-    fn eval(&self, wi: DVec3, wo: DVec3, out: &mut [f64]) {
-        out.fill(0.0);
-        if wi.z <= 0.0 || wo.z <= 0.0 {
-            return;
-        }
-        let mut weight = vec![1.0; self.channels];
-        for (i, slab) in self.interfaces() {
-            if let Some((geo, cos_h)) = bsdf::reflection_geometry(&i.mf, self.g2, wi, wo) {
-                for (c, o) in out.iter_mut().enumerate() {
-                    *o += weight[c] * geo * fresnel(i, cos_h, c);
-                }
-            }
-            let Some(slab) = slab else { return };
-            for (c, w) in weight.iter_mut().enumerate() {
-                *w *= self.scale(i, slab, wi, wo, c);
-            }
-        }
-        if let Some(SpLayer::Diffuse { albedo, sigma, .. }) = self.layers.last() {
-            let shape = diffuse::oren_nayar_shape(*sigma, wi, wo);
-            for (c, o) in out.iter_mut().enumerate() {
-                *o += weight[c] * albedo[c] * shape;
-            }
-        }
-    }
-
     /// Each term's energy at wo (its albedo times the scales above, mean over channels) with its lobe, and the
     /// Dirac reflection of smooth interfaces reached through smooth ones (`mirror`, per channel).
     fn terms(&self, wo: DVec3, mirror: &mut [f64]) -> Vec<(f64, Proposal)> {
@@ -197,7 +229,7 @@ impl Prepared {
         let mut weight = vec![1.0; self.channels];
         let mut smooth_above = true;
         let mut out = Vec::new();
-        for (i, slab) in self.interfaces() {
+        for (i, slab) in interfaces(&self.layers) {
             if i.mf.is_smooth() {
                 if smooth_above {
                     (0..self.channels).for_each(|c| mirror[c] += weight[c] * fresnel(i, wo.z, c));
@@ -208,7 +240,7 @@ impl Prepared {
             }
             let Some(slab) = slab else { return out };
             for (c, w) in weight.iter_mut().enumerate() {
-                *w *= self.scale(i, slab, wo, wo, c);
+                *w *= scale(i, slab, self.reciprocal, wo, wo, c);
             }
         }
         if let Some(SpLayer::Diffuse { albedo, .. }) = self.layers.last() {
@@ -404,8 +436,12 @@ impl Proposals for Lanes {
 }
 
 impl Model for Prepared {
+    fn gradient(&self, seeds: &[Seed], n_params: usize) -> Result<Gradient<'_>> {
+        super::dual_width!(n_params, gradient(self, seeds))
+    }
+
     fn eval_block(&self, wi: [&[f64]; 3], wo: [&[f64]; 3], _: &Inputs, out: &mut [f64]) {
-        eval_rows(wi, wo, out, |_, wi, wo, o| self.eval(wi, wo, o))
+        eval_rows(wi, wo, out, |_, wi, wo, o| eval(&self.layers, self.g2, self.reciprocal, wi, wo, o))
     }
 
     fn eval_f32(&self, wi: Rows, wo: Rows, fit: Option<&FitLanes>, out: &mut [f32]) -> bool {

@@ -22,6 +22,8 @@
 //! | `variant`         | string | `published`         | `improved`: with `transport_fit` (corrections/transport_fit.rs) |
 //!
 //! The distribution is GGX (the tables are GGX). Sampling: the shared single-pass mixture (models/common/single_pass.rs).
+//! Gradients (`Stack.eval_grad`): the walk in Duals (single_pass::gradient), through the tables' interpolants or the
+//! fitted closed forms, with the exact Fresnel form and without the inter-reflection corrections.
 
 use super::common::block::simd_columns;
 use super::common::mixture_lanes::{self, LaneMixture, Proposals};
@@ -29,11 +31,14 @@ use super::common::options::{
     choice, variant, CLAMP_ROUGHNESS, CONDUCTOR_INTERREFLECTION, ETA2, FRESNEL, G2, INTERREFLECTION,
     MICROFACET_TRANSMISSION, TRANSPORT_FIT,
 };
-use super::common::single_pass::{refracted_up, Passage, SpInterface, SpLayer, Transport, Walk, WalkOptions};
+use super::common::single_pass::{
+    self, refracted_up_real, Passage, RealTransport, SpInterface, SpLayer, Transport, Walk, WalkOptions,
+};
 use super::common::walk_lanes::{self, LanePassage, LaneTransport, LaneWalk};
 use super::corrections::{interreflection, transport_fit};
-use super::{Args, InputSpec, Model, ModelInfo, OptionSpec, Properties, Proposal};
+use super::{Args, Field, Gradient, InputSpec, Model, ModelInfo, OptionSpec, Properties, Proposal, Seed};
 use crate::bsdf;
+use crate::dual::{Dir, Real};
 use crate::engine::{self, Floats, Mask, Rows, V3};
 use crate::error::{value_error, Result};
 use crate::models::FitLanes;
@@ -72,6 +77,8 @@ pub struct Prepared {
     pub walk: Walk,
     pub opts: Options,
     pub channels: usize,
+    /// The stack, whose layers the gradient takes in Duals.
+    stack: Stack,
     /// The float32 kernel, where the lanes cover the stack (`Lanes::new`).
     lanes: Option<Lanes>,
 }
@@ -98,7 +105,7 @@ pub const INFO: ModelInfo = ModelInfo {
     ] as &[OptionSpec],
     inputs: &[] as &[InputSpec],
     properties: Properties { reciprocal: false, energy_conserving: false, anisotropic: true, spectral: true },
-    gradients: &[],
+    gradients: &Field::NAMES,
     prepare: |stack, args| {
         let opts = Options::parse(args)?;
         transport_fit::apply(opts.transport_fit, Box::new(prepare(stack, &opts)?), stack)
@@ -124,7 +131,7 @@ pub fn prepare(stack: &Stack, opts: &Options) -> Result<Prepared> {
     }
     steinberg(); // generate or load the tables outside the parallel evaluation
     let lanes = Lanes::new(&walk, opts, stack.channels);
-    Ok(Prepared { walk, opts: *opts, channels: stack.channels, lanes })
+    Ok(Prepared { walk, opts: *opts, channels: stack.channels, stack: stack.clone(), lanes })
 }
 
 /// Steinberg's walk in float32 lanes (models/common/walk_lanes.rs): each dielectric interface's table sliced at its
@@ -231,27 +238,42 @@ impl Transport for Prepared {
         bsdf::reflection_geometry(&iface.mf, self.walk.g2, wi, wo)
     }
 
-    /// t(wo) t(wi) (or T(wo) T(wi) with `microfacet_transmission`) and the mean refracted directions from the
-    /// tables, at each direction's projected roughness.
+    /// `passage_real` in f64.
     #[inline(always)]
     fn passage(&self, iface: &SpInterface, wi: DVec3, wo: DVec3, c: usize) -> Option<Passage> {
-        let table = steinberg();
-        let lookup = |w: DVec3| {
-            let alpha = if iface.mf.is_smooth() { 0.0 } else { iface.mf.projected_alpha(w) };
-            let (t, s) = if self.opts.fitted {
-                table.fitted(w.z, alpha, iface.eta[c])
-            } else {
-                table.tabulated(w.z, alpha, iface.eta[c])
+        let p = self.passage_real(iface, wi.into(), wo.into(), c)?;
+        let (wi, wo) = (p.wi.into(), p.wo.into());
+        Some(Passage { t_light: p.t_light, t_view: p.t_view, t_view_slab: p.t_view_slab, wi, wo })
+    }
+}
+
+impl RealTransport for Prepared {
+    /// t(wo) t(wi) (or T(wo) T(wi) with `microfacet_transmission`) and the mean refracted directions from the
+    /// tables (their interpolants, or the fitted closed forms), at each direction's projected roughness.
+    #[inline(always)]
+    fn passage_real<T: Real>(
+        &self,
+        iface: &SpInterface<T>,
+        wi: Dir<T>,
+        wo: Dir<T>,
+        c: usize,
+    ) -> Option<Passage<T, Dir<T>>> {
+        let (table, eta) = (steinberg(), iface.eta[c]);
+        let lookup = |w: Dir<T>| {
+            let alpha = if iface.mf.is_smooth() { T::from(0.0) } else { iface.mf.projected_alpha(w) };
+            let (t, s) = match self.opts.fitted {
+                true => table.fitted(w[2], alpha, eta),
+                false => table.tabulated(w[2], alpha, eta),
             };
-            (if self.opts.microfacet_transmission { table.transmitted(w.z, alpha, iface.eta[c]) } else { t }, s)
+            (if self.opts.microfacet_transmission { table.transmitted(w[2], alpha, eta) } else { t }, s)
         };
         let ((t_i, s_i), (t_o, s_o)) = (lookup(wi), lookup(wo));
         Some(Passage {
             t_light: t_i,
             t_view: t_o,
             t_view_slab: t_o,
-            wi: refracted_up(wi, s_i),
-            wo: refracted_up(wo, s_o),
+            wi: refracted_up_real(wi, s_i),
+            wo: refracted_up_real(wo, s_o),
         })
     }
 }
@@ -263,7 +285,17 @@ impl Prepared {
     }
 }
 
+/// The gradient of the walk with respect to N parameters (single_pass::gradient), through the tables' interpolants
+/// (or the fitted closed forms).
+fn gradient<'a, const N: usize>(p: &'a Prepared, seeds: &[Seed]) -> Result<Gradient<'a>> {
+    single_pass::gradient::<N, _>("steinberg", p, &p.walk, &p.stack, Distribution::Ggx, &p.opts.walk, seeds)
+}
+
 impl Model for Prepared {
+    fn gradient(&self, seeds: &[Seed], n_params: usize) -> Result<Gradient<'_>> {
+        super::dual_width!(n_params, gradient(self, seeds))
+    }
+
     fn eval_block(&self, wi: [&[f64]; 3], wo: [&[f64]; 3], _: &super::Inputs, out: &mut [f64]) {
         simd_columns!(Prepared, self, wi, wo, out)
     }

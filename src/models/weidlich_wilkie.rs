@@ -30,6 +30,8 @@
 //! normalize(flake + max(distance, 1) ẑ) (car paint; a base tilted below the horizon reflects nothing); `mask`
 //! (...) in [0, 1] covers the surface with the stack's top layer, the patina (`Patina`). Sampling: the shared
 //! single-pass mixture (models/common/single_pass.rs).
+//! Gradients (`Stack.eval_grad`): the walk in Duals (single_pass::gradient), with the exact Fresnel form, without
+//! Elek's precomputed tables or the inter-reflection corrections.
 
 use super::common::block::{eval_rows, simd_columns, BLOCK};
 use super::common::mixture_lanes::{self, LaneMixture, Proposals};
@@ -37,17 +39,21 @@ use super::common::options::{
     distribution, flag, g2, number, variant, OptionKind, CLAMP_ROUGHNESS, CONDUCTOR_INTERREFLECTION, ETA2, FRESNEL,
     INTERREFLECTION, TRANSPORT_FIT,
 };
-use super::common::single_pass::{refracted_up, Passage, SpInterface, SpLayer, Transport, Walk, WalkOptions};
+use super::common::single_pass::{
+    self, refracted_up, refracted_up_real, sin_theta_real, Passage, RealTransport, SpInterface, SpLayer, Transport,
+    Walk, WalkOptions,
+};
 use super::common::walk_lanes::{self, LanePassage, LaneTransport, LaneWalk};
 use super::corrections::{interreflection, transport_fit};
-use super::{Args, InputSpec, Inputs, Model, ModelInfo, OptionSpec, Properties, Proposal};
+use super::{Args, Field, Gradient, InputSpec, Inputs, Model, ModelInfo, OptionSpec, Properties, Proposal, Seed};
 use crate::bsdf;
+use crate::dual::{normalize, Dir, Real};
 use crate::engine::{self, Floats, Rows, V3};
 use crate::error::{value_error, Result};
 use crate::models::FitLanes;
 use crate::optics::distribution::{Distribution, G2Form};
 use crate::optics::lanes::{self, dielectric_transmittance};
-use crate::optics::sin_theta;
+use crate::optics::{fresnel, sin_theta};
 use crate::stack::{Layer, Stack};
 use crate::tables::elek::beckmann_table;
 use glam::DVec3;
@@ -94,7 +100,7 @@ pub const INFO: ModelInfo = ModelInfo {
         InputSpec { name: "mask", width: 1, range: (0.0, 1.0), doc: "patina map: where the top layer covers the base" },
     ],
     properties: Properties { reciprocal: false, energy_conserving: false, anisotropic: true, spectral: true },
-    gradients: &[],
+    gradients: &Field::NAMES,
     prepare: |stack, args| {
         let opts = Options::parse(args, stack.channels)?;
         transport_fit::apply(opts.transport_fit, Box::new(prepare(stack, &opts)?), stack)
@@ -149,6 +155,10 @@ pub struct Prepared {
     pub walk: Walk,
     pub precomputed: bool,
     pub channels: usize,
+    /// The stack and the walk's options, which the gradient takes in Duals.
+    stack: Stack,
+    opts: WalkOptions,
+    distribution: Distribution,
     /// The patina form of the stack (its top layer over the rest), when the top layer is a dielectric.
     patina: Option<Patina>,
     /// The float32 kernel, where the lanes cover the stack (`Lanes::new`).
@@ -171,7 +181,8 @@ pub fn prepare(stack: &Stack, opts: &Options) -> Result<Prepared> {
         _ => None,
     };
     let lanes = if precomputed { None } else { Lanes::new(&walk, stack.channels) };
-    Ok(Prepared { walk, precomputed, channels: stack.channels, patina, lanes })
+    let (stack, distribution) = (stack.clone(), opts.distribution);
+    Ok(Prepared { walk, precomputed, channels: stack.channels, stack, opts: opts.walk, distribution, patina, lanes })
 }
 
 /// Weidlich–Wilkie's walk in float32 lanes (models/common/walk_lanes.rs), with V-cavity lobes (the published form)
@@ -270,6 +281,38 @@ impl Transport for Prepared {
     }
 }
 
+impl RealTransport for Prepared {
+    /// `passage` in Reals, with the exact Fresnel form (the gradient's).
+    #[inline(always)]
+    fn passage_real<T: Real>(
+        &self,
+        iface: &SpInterface<T>,
+        wi: Dir<T>,
+        wo: Dir<T>,
+        c: usize,
+    ) -> Option<Passage<T, Dir<T>>> {
+        let eta = iface.eta[c];
+        let (sin_i, sin_o) = (sin_theta_real(wi) / eta, sin_theta_real(wo) / eta);
+        if sin_i.value() >= 1.0 || sin_o.value() >= 1.0 {
+            return None;
+        }
+        let (t12, t21) = (fresnel::dielectric_transmittance(wi[2], eta), fresnel::dielectric_transmittance(wo[2], eta));
+        let g = match iface.mf.is_smooth() {
+            true => T::from(1.0),
+            false => {
+                iface.mf.g2_at::<T>(self.walk.g2, wi, wo, normalize([wi[0] + wo[0], wi[1] + wo[1], wi[2] + wo[2]]))
+            }
+        };
+        Some(Passage {
+            t_light: t12,
+            t_view: (T::from(1.0) - g) + t21 * g,
+            t_view_slab: t21,
+            wi: refracted_up_real(wi, sin_i),
+            wo: refracted_up_real(wo, sin_o),
+        })
+    }
+}
+
 impl Prepared {
     #[inline(always)]
     fn eval_columns(&self, wi: [&[f64]; 3], wo: [&[f64]; 3], out: &mut [f64]) {
@@ -277,7 +320,20 @@ impl Prepared {
     }
 }
 
+/// The gradient of the walk with respect to N parameters (single_pass::gradient); Elek's precomputed tables have
+/// none.
+fn gradient<'a, const N: usize>(p: &'a Prepared, seeds: &[Seed]) -> Result<Gradient<'a>> {
+    if p.precomputed {
+        return value_error("gradients of model 'weidlich_wilkie' take precomputed=False");
+    }
+    single_pass::gradient::<N, _>("weidlich_wilkie", p, &p.walk, &p.stack, p.distribution, &p.opts, seeds)
+}
+
 impl Model for Prepared {
+    fn gradient(&self, seeds: &[Seed], n_params: usize) -> Result<Gradient<'_>> {
+        super::dual_width!(n_params, gradient(self, seeds))
+    }
+
     fn eval_block(&self, wi: [&[f64]; 3], wo: [&[f64]; 3], inputs: &Inputs, out: &mut [f64]) {
         let input = |j: usize| inputs.get(j).copied().flatten();
         let (flake, distance, mask) = (input(0), input(1), input(2));

@@ -1,6 +1,6 @@
 //! Diffuse lobes: Lambert and the qualitative Oren–Nayar model.
 
-use crate::dual::Real;
+use crate::dual::{Dir, Real, With};
 use glam::DVec3;
 use std::f64::consts::FRAC_1_PI;
 
@@ -19,9 +19,15 @@ pub fn oren_nayar(albedo: f64, sigma: f64, wi: DVec3, wo: DVec3) -> f64 {
     albedo * oren_nayar_shape(sigma, wi, wo)
 }
 
-/// The Oren–Nayar BRDF per unit albedo, f/ρ (shared by all colour channels).
-pub fn oren_nayar_shape<T: Real>(sigma: T, wi: DVec3, wo: DVec3) -> T {
-    if wi.z <= 0.0 || wo.z <= 0.0 {
+/// The Oren–Nayar BRDF per unit albedo, f/ρ (shared by all colour channels). σ is f64 or a Dual; the directions
+/// too, where a parameter moves them (below a coat).
+pub fn oren_nayar_shape<T, C>(sigma: T, wi: impl Into<Dir<C>>, wo: impl Into<Dir<C>>) -> T
+where
+    C: Real,
+    T: With<C>,
+{
+    let (wi, wo) = (wi.into(), wo.into());
+    if wi[2].value() <= 0.0 || wo[2].value() <= 0.0 {
         return T::from(0.0);
     }
     if sigma.value() == 0.0 {
@@ -30,17 +36,18 @@ pub fn oren_nayar_shape<T: Real>(sigma: T, wi: DVec3, wo: DVec3) -> T {
     let s2 = sigma * sigma;
     let a = T::from(1.0) - s2 * 0.5 / (s2 + 0.33);
     let b = s2 * 0.45 / (s2 + 0.09);
-    let sin_i = (1.0 - wi.z * wi.z).max(0.0).sqrt();
-    let sin_o = (1.0 - wo.z * wo.z).max(0.0).sqrt();
-    let cos_dphi = if sin_i > 1e-12 && sin_o > 1e-12 {
-        ((wi.x * wo.x + wi.y * wo.y) / (sin_i * sin_o)).clamp(-1.0, 1.0)
+    let sin_i = (C::from(1.0) - wi[2] * wi[2]).max_c(0.0).sqrt();
+    let sin_o = (C::from(1.0) - wo[2] * wo[2]).max_c(0.0).sqrt();
+    let cos_dphi = if sin_i.value() > 1e-12 && sin_o.value() > 1e-12 {
+        ((wi[0] * wo[0] + wi[1] * wo[1]) / (sin_i * sin_o)).clamp_c(-1.0, 1.0)
     } else {
-        0.0
+        C::from(0.0)
     };
     // sin α tan β with α the larger zenith angle, β the smaller one; tan β grows without bound as both directions
     // graze, so its cosine is kept ≥ 1e-12 (f stays finite; unchanged above 1e-12).
-    let sin_alpha_tan_beta = sin_i * sin_o / wi.z.max(wo.z).max(1e-12);
-    (a + b * cos_dphi.max(0.0) * sin_alpha_tan_beta) * FRAC_1_PI
+    let larger = if wo[2].value() > wi[2].value() { wo[2] } else { wi[2] };
+    let sin_alpha_tan_beta = sin_i * sin_o / larger.max_c(1e-12);
+    (a + b * cos_dphi.max_c(0.0) * sin_alpha_tan_beta) * FRAC_1_PI
 }
 
 #[cfg(test)]

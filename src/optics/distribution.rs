@@ -2,8 +2,7 @@
 //! masking of Torrance–Sparrow, and visible-normal sampling. Directions are in the local frame (z = normal); each
 //! distribution carries the rotation `angle` of its tangent frame, along whose x axis `alpha_x` applies.
 
-use super::to_tangent_frame;
-use crate::dual::{normalize, value, Dir, Real, With};
+use crate::dual::{dot, normalize, value, Dir, Real, With};
 use glam::DVec3;
 use std::f64::consts::PI;
 
@@ -177,20 +176,48 @@ impl<T: Real> Microfacet<T> {
             G2Form::VCavity => T::from(v_cavity(value(wi.into()), value(wo.into()), m)),
         }
     }
-}
 
-impl Microfacet {
-    /// The same distribution and tangent frame with other roughnesses.
+    /// Masking-shadowing of the chosen form at the half vector h, carrying the derivatives by directions that
+    /// parameters move, the V-cavity's included (which takes h itself).
     #[inline(always)]
-    pub fn with_alpha(&self, alpha_x: f64, alpha_y: f64) -> Self {
-        Self {
-            alpha_x: alpha_x.max(MIN_ALPHA),
-            alpha_y: alpha_y.max(MIN_ALPHA),
-            smooth: alpha_x == 0.0 && alpha_y == 0.0,
-            ..*self
+    pub fn g2_at<C: Real>(&self, form: G2Form, wi: Dir<C>, wo: Dir<C>, h: Dir<C>) -> T
+    where
+        T: With<C> + From<C>,
+    {
+        match form {
+            G2Form::VCavity => T::from(v_cavity(wi, wo, h)),
+            _ => self.g2(form, wi, wo, value(h)),
         }
     }
 
+    /// Projected roughness α(φ) = √(αx² cos²φ + αy² sin²φ) along the azimuth φ of `w` in the tangent frame (Heitz
+    /// 2014 eq. 80); αx for a direction along the normal.
+    #[inline(always)]
+    pub fn projected_alpha<C: Real>(&self, w: impl Into<Dir<C>>) -> T
+    where
+        T: With<C>,
+    {
+        let (x, y, _) = self.tangent_t(w.into());
+        let r2 = x * x + y * y;
+        if r2.value() == 0.0 {
+            return self.alpha_x;
+        }
+        (((x * self.alpha_x) * (x * self.alpha_x) + (y * self.alpha_y) * (y * self.alpha_y)) / r2).sqrt()
+    }
+
+    /// The same distribution and tangent frame with other roughnesses.
+    #[inline(always)]
+    pub fn with_alpha(&self, alpha_x: T, alpha_y: T) -> Self {
+        Self {
+            alpha_x: alpha_x.max_c(MIN_ALPHA),
+            alpha_y: alpha_y.max_c(MIN_ALPHA),
+            smooth: alpha_x.value() == 0.0 && alpha_y.value() == 0.0,
+            ..*self
+        }
+    }
+}
+
+impl Microfacet {
     /// The same distribution with other roughnesses along the tangent frame rotated by the angle of cosine `cos_phi`
     /// and sine `sin_phi`.
     #[inline(always)]
@@ -201,22 +228,6 @@ impl Microfacet {
     /// (cos, sin) of the rotation of the tangent frame.
     pub fn frame(&self) -> (f64, f64) {
         (self.cos_phi, self.sin_phi)
-    }
-
-    #[inline(always)]
-    fn tangent(&self, w: DVec3) -> DVec3 {
-        to_tangent_frame(w, self.cos_phi, self.sin_phi)
-    }
-
-    /// Projected roughness α(φ) = √(αx² cos²φ + αy² sin²φ) along the azimuth φ of `w` in the tangent frame (Heitz
-    /// 2014 eq. 80); αx for a direction along the normal.
-    pub fn projected_alpha(&self, w: DVec3) -> f64 {
-        let w = self.tangent(w);
-        let r2 = w.x * w.x + w.y * w.y;
-        if r2 == 0.0 {
-            return self.alpha_x;
-        }
-        (((w.x * self.alpha_x).powi(2) + (w.y * self.alpha_y).powi(2)) / r2).sqrt()
     }
 
     /// Distribution of visible normals D_wi(m) = G1(wi, m) max(0, wi·m) D(m) / cos θi (Heitz 2018 eq. 1),
@@ -298,12 +309,21 @@ impl std::str::FromStr for G2Form {
 /// V-cavity masking-shadowing of Torrance–Sparrow 1967 / Cook–Torrance 1982:
 /// min(1, 2(n·m)(n·wo)/(wo·m), 2(n·m)(n·wi)/(wi·m)).
 #[inline(always)]
-pub fn v_cavity(wi: DVec3, wo: DVec3, m: DVec3) -> f64 {
-    let (im, om) = (wi.dot(m), wo.dot(m));
-    if im * wi.z <= 0.0 || om * wo.z <= 0.0 {
-        return 0.0;
+pub fn v_cavity<C: Real>(wi: impl Into<Dir<C>>, wo: impl Into<Dir<C>>, m: impl Into<Dir<C>>) -> C {
+    let (wi, wo, m) = (wi.into(), wo.into(), m.into());
+    let (im, om) = (dot(wi, m), dot(wo, m));
+    if (im * wi[2]).value() <= 0.0 || (om * wo[2]).value() <= 0.0 {
+        return C::from(0.0);
     }
-    (2.0 * m.z * wo.z / om).abs().min((2.0 * m.z * wi.z / im).abs()).min(1.0)
+    let (o, i) = ((m[2] * 2.0 * wo[2] / om).abs(), (m[2] * 2.0 * wi[2] / im).abs());
+    // f64::min's rule: a NaN operand (m of two opposite directions, whose sum normalizes to 0/0) gives the other,
+    // and G = 1 where both are.
+    let g = if o.value().is_nan() || i.value() < o.value() { i } else { o };
+    if g.value() > 1.0 || g.value().is_nan() {
+        C::from(1.0)
+    } else {
+        g
+    }
 }
 
 /// Samples the slopes (x̃, ỹ) of the visible standard Beckmann distribution (α = 1) seen from the stretched

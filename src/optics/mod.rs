@@ -56,13 +56,6 @@ pub fn refract_about<T: Real>(w: DVec3, n: Dir<T>, eta: T) -> Option<Dir<T>> {
     Some([T::from(-w.x) / eta + k * n[0], T::from(-w.y) / eta + k * n[1], T::from(-w.z) / eta + k * n[2]])
 }
 
-/// Rotates a local direction about the normal by -`angle` given (cos angle, sin angle): world tangent frame to
-/// a layer's tangent frame rotated by `angle`.
-#[inline]
-pub fn to_tangent_frame(w: DVec3, cos_phi: f64, sin_phi: f64) -> DVec3 {
-    DVec3::new(cos_phi * w.x + sin_phi * w.y, -sin_phi * w.x + cos_phi * w.y, w.z)
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;

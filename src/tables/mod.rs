@@ -77,6 +77,16 @@ pub fn node(x: f64, n: usize) -> (usize, f64) {
     (i as usize, s - i as f64)
 }
 
+/// `node` in Reals: the fraction carries the derivatives of x inside [0, 1] (0 where x is clamped).
+#[inline(always)]
+pub fn node_real<T: Real>(x: T, n: usize) -> (usize, T) {
+    let (i, f) = node(x.value(), n);
+    match (0.0..=1.0).contains(&x.value()) {
+        true => (i, x * (n - 1) as f64 - i as f64),
+        false => (i, T::from(f)),
+    }
+}
+
 /// `node` in float32 lanes: the lower nodes and the fractions.
 #[inline(always)]
 pub fn node_lanes(x: Floats, n: usize) -> ([u32; LANES], Floats) {
@@ -144,15 +154,8 @@ impl<const D: usize, const W: usize> Grid<D, W> {
     /// those of the weights (0 along an axis clamped at its ends).
     #[inline(always)]
     pub fn lookup<T: Real>(&self, x: [T; D]) -> [T; W] {
-        let corner: [(usize, f64); D] = std::array::from_fn(|d| node(x[d].value(), self.dims[d]));
-        let fraction: [T; D] = std::array::from_fn(|d| {
-            let (i, f) = corner[d];
-            if (0.0..=1.0).contains(&x[d].value()) {
-                x[d] * (self.dims[d] - 1) as f64 - i as f64
-            } else {
-                T::from(f)
-            }
-        });
+        let corner: [(usize, T); D] = std::array::from_fn(|d| node_real(x[d], self.dims[d]));
+        let fraction: [T; D] = std::array::from_fn(|d| corner[d].1);
         let base: usize = corner.iter().zip(&self.strides).map(|(&(i, _), s)| i * s).sum();
         let mut out = [T::from(0.0); W];
         for k in 0..1usize << D {

@@ -19,7 +19,8 @@
 //! tabulated μ column by weighted Levenberg–Marquardt (weights 10 at μ = 0 and 100 at μ = 1 for t, 10 at both ends
 //! for s), bilinear in (α, log η) between nodes. The fit error against the table is reported in docs/validation.md.
 
-use super::{fit, node, shared, visible_normals, Grid};
+use super::{fit, node_real, shared, visible_normals, Grid};
+use crate::dual::Real;
 use crate::optics::distribution::{Distribution, Microfacet};
 use crate::optics::fresnel;
 use crate::optics::refract;
@@ -50,7 +51,7 @@ pub fn eta_at(i: usize) -> f64 {
     ETA_MIN * (ETA_MAX / ETA_MIN).powf(i as f64 / (N_ETA - 1) as f64)
 }
 
-fn eta_coord(eta: f64) -> f64 {
+fn eta_coord<T: Real>(eta: T) -> T {
     (eta / ETA_MIN).ln() / (ETA_MAX / ETA_MIN).ln()
 }
 
@@ -85,13 +86,13 @@ fn integrate(mf: &Microfacet, v: DVec3, normals: &[DVec3], eta: f64) -> [f64; ST
 }
 
 /// Transmission model m((erf(aμ − b) + 1) + cμ) + d, parameters (a, b, c, d, m).
-pub fn t_model(p: &[f64; T_PARAMS], mu: f64) -> f64 {
-    p[4] * ((libm::erf(p[0] * mu - p[1]) + 1.0) + p[2] * mu) + p[3]
+pub fn t_model<T: Real>(p: &[f64; T_PARAMS], mu: T) -> T {
+    ((mu * p[0] - p[1]).erf() + 1.0 + mu * p[2]) * p[4] + p[3]
 }
 
 /// Refraction model a₁e^{a₂μ} + b₁e^{b₂μ}, parameters (a₁, a₂, b₁, b₂).
-pub fn s_model(p: &[f64; S_PARAMS], mu: f64) -> f64 {
-    p[0] * (p[1] * mu).exp() + p[2] * (p[3] * mu).exp()
+pub fn s_model<T: Real>(p: &[f64; S_PARAMS], mu: T) -> T {
+    (mu * p[1]).exp() * p[0] + (mu * p[3]).exp() * p[2]
 }
 
 pub struct Steinberg {
@@ -199,7 +200,7 @@ impl Steinberg {
     }
 
     /// Trilinear interpolation in (μ, α, log η) of the node values [t, s / sin θ, p, T].
-    fn interpolate(&self, mu: f64, alpha: f64, eta: f64) -> [f64; STRIDE] {
+    fn interpolate<T: Real>(&self, mu: T, alpha: T, eta: T) -> [T; STRIDE] {
         self.table.lookup([mu, alpha, eta_coord(eta)])
     }
 
@@ -234,14 +235,14 @@ impl Steinberg {
     }
 
     /// (t, s) from the table (s through s / sin θ).
-    pub fn tabulated(&self, mu: f64, alpha: f64, eta: f64) -> (f64, f64) {
+    pub fn tabulated<T: Real>(&self, mu: T, alpha: T, eta: T) -> (T, T) {
         let [t, s, ..] = self.interpolate(mu, alpha, eta);
-        (t, (s * (1.0 - mu * mu).max(0.0).sqrt()).min(1.0))
+        (t, (s * (T::from(1.0) - mu * mu).max_c(0.0).sqrt()).min_c(1.0))
     }
 
     /// T: the energy a single-scattering rough interface transmits, with the masking of the refracted light.
-    pub fn transmitted(&self, mu: f64, alpha: f64, eta: f64) -> f64 {
-        self.interpolate(mu, alpha, eta)[3].clamp(0.0, 1.0)
+    pub fn transmitted<T: Real>(&self, mu: T, alpha: T, eta: T) -> T {
+        self.interpolate(mu, alpha, eta)[3].clamp_c(0.0, 1.0)
     }
 
     /// p: the fraction of the visible normals at which the direction is totally internally reflected.
@@ -250,22 +251,22 @@ impl Steinberg {
     }
 
     /// (t, s) from the fitted closed forms, bilinear in (α, log η) between the fitted nodes, clamped to [0, 1].
-    pub fn fitted(&self, mu: f64, alpha: f64, eta: f64) -> (f64, f64) {
-        let (j, fj) = node(alpha, N_ALPHA);
-        let (k, fk) = node(eta_coord(eta), N_ETA);
+    pub fn fitted<T: Real>(&self, mu: T, alpha: T, eta: T) -> (T, T) {
+        let (j, fj) = node_real(alpha, N_ALPHA);
+        let (k, fk) = node_real(eta_coord(eta), N_ETA);
         let stride = T_PARAMS + S_PARAMS;
-        let (mut t, mut s) = (0.0, 0.0);
-        for (dj, wj) in [(0, 1.0 - fj), (1, fj)] {
-            for (dk, wk) in [(0, 1.0 - fk), (1, fk)] {
+        let (mut t, mut s) = (T::from(0.0), T::from(0.0));
+        for (dj, wj) in [(0, T::from(1.0) - fj), (1, fj)] {
+            for (dk, wk) in [(0, T::from(1.0) - fk), (1, fk)] {
                 let w = wj * wk;
                 let c = &self.fits[((j + dj) * N_ETA + k + dk) * stride..][..stride];
                 let pt: [f64; T_PARAMS] = std::array::from_fn(|q| c[q] as f64);
                 let ps: [f64; S_PARAMS] = std::array::from_fn(|q| c[T_PARAMS + q] as f64);
-                t += w * t_model(&pt, mu);
-                s += w * s_model(&ps, mu);
+                t = t + w * t_model(&pt, mu);
+                s = s + w * s_model(&ps, mu);
             }
         }
-        (t.clamp(0.0, 1.0), s.clamp(0.0, 1.0))
+        (t.clamp_c(0.0, 1.0), s.clamp_c(0.0, 1.0))
     }
 }
 

@@ -12,26 +12,33 @@
 //! (corrections/interreflection.rs: a gain per channel of a diffuse base, a tabulated diffuse term of a conductor
 //! base, which the walk evaluates). The radiance compression 1/η² across each interface, which both publications
 //! omit, is lamina's option `eta2` (on by default: measured in docs/validation.md).
+//!
+//! Parameter gradients (`gradient`): the same walk in Reals (`Walk::eval_real`, the layers from `layers_with` in
+//! Duals), with each model's passage in Reals (`RealTransport`): the refracted directions carry the derivatives of
+//! the IORs and roughnesses above them.
 
 use super::block::{row, BLOCK};
 use super::options::Args;
-use crate::error::Result;
-use crate::models::Proposal;
+use crate::bsdf;
+use crate::dual::{dir, Dir, Dual, Real};
+use crate::error::{value_error, Result};
+use crate::models::{seeded, store, Gradient, Proposal, Seed};
+use crate::optics::diffuse;
 use crate::optics::distribution::{Distribution, G2Form, Microfacet};
-use crate::optics::fresnel::FresnelForm;
-use crate::optics::{diffuse, sin_theta};
+use crate::optics::fresnel::{self, FresnelForm};
 use crate::sampling::orthonormal_basis;
-use crate::stack::{Layer, Stack};
+use crate::stack::{Field, Layer, Stack};
 use crate::tables::elek::FresnelTable;
 use glam::DVec3;
 use std::f64::consts::FRAC_1_PI;
 
 /// A rough (or smooth) interface with its relative IOR per channel (below / above) and κ for conductors; `table`
-/// holds Elek's precomputed Fresnel table per channel with the option `precomputed`.
-pub struct SpInterface {
-    pub mf: Microfacet,
-    pub eta: Vec<f64>,
-    pub kappa: Vec<f64>,
+/// holds Elek's precomputed Fresnel table per channel with the option `precomputed`. Its numbers are f64, or Duals
+/// for parameter gradients (`layers_with`).
+pub struct SpInterface<T = f64> {
+    pub mf: Microfacet<T>,
+    pub eta: Vec<T>,
+    pub kappa: Vec<T>,
     pub conductor: bool,
     pub table: Vec<FresnelTable>,
 }
@@ -66,31 +73,31 @@ impl SpInterface {
     }
 }
 
-pub enum SpLayer {
+pub enum SpLayer<T = f64> {
     Dielectric {
-        iface: SpInterface,
-        thickness: f64,
-        sigma_t: Vec<f64>,
-        albedo: Vec<f64>,
+        iface: SpInterface<T>,
+        thickness: T,
+        sigma_t: Vec<T>,
+        albedo: Vec<T>,
     },
     /// `diffuse`: empty, or with the `conductor_interreflection` correction per channel the Lambertian albedo of the
     /// light that the coat above returns to the base, at INTERREFLECTION_NODES cosines of the light's arrival
     /// (`add_conductor_interreflection`, `interreflected`).
     Conductor {
-        iface: SpInterface,
+        iface: SpInterface<T>,
         diffuse: Vec<f64>,
     },
     /// `gain` per channel: 1, or with the `interreflection` correction the geometric series 1/(1 − ρ r).
     Diffuse {
-        albedo: Vec<f64>,
-        sigma: f64,
+        albedo: Vec<T>,
+        sigma: T,
         gain: Vec<f64>,
     },
 }
 
-impl SpLayer {
+impl<T> SpLayer<T> {
     /// The layer's interface (none for a diffuse base).
-    pub fn interface(&self) -> Option<&SpInterface> {
+    pub fn interface(&self) -> Option<&SpInterface<T>> {
         match self {
             SpLayer::Dielectric { iface, .. } | SpLayer::Conductor { iface, .. } => Some(iface),
             SpLayer::Diffuse { .. } => None,
@@ -101,41 +108,97 @@ impl SpLayer {
 /// The stack as single-pass layers. With `clamp_roughness` each layer is at least as rough as the one above
 /// (Elek 2010's m₂ ≥ m₁: a rough coat blurs what lies beneath, which a single pass cannot otherwise express).
 pub fn layers(stack: &Stack, dist: Distribution, clamp_roughness: bool) -> Vec<SpLayer> {
-    let mut rough_above = (0.0f64, 0.0f64);
+    layers_with(stack, dist, clamp_roughness, |_, _, _, v| v)
+}
+
+/// `layers` with each number through `value(layer, field, channel, number)`: the identity, or a Dual seeded for
+/// parameter gradients (models::seeded).
+pub fn layers_with<T: Real>(
+    stack: &Stack,
+    dist: Distribution,
+    clamp_roughness: bool,
+    value: impl Fn(usize, Field, usize, f64) -> T,
+) -> Vec<SpLayer<T>> {
+    let channels = |i: usize, field: Field, v: &[f64]| -> Vec<T> {
+        v.iter().enumerate().map(|(c, &x)| value(i, field, c, x)).collect()
+    };
+    let larger = |a: T, b: T| if b.value() > a.value() { b } else { a };
+    let mut rough_above = (T::from(0.0), T::from(0.0));
     let mut out = Vec::with_capacity(stack.layers.len());
-    for (layer, rel) in stack.layers.iter().zip(stack.interfaces()) {
-        let iface = |alpha: (f64, f64), angle: f64, conductor: bool| {
-            let alpha = if clamp_roughness { (alpha.0.max(rough_above.0), alpha.1.max(rough_above.1)) } else { alpha };
+    for (i, (layer, rel)) in stack.layers.iter().zip(stack.interfaces()).enumerate() {
+        let iface = |alpha: (T, T), angle: f64, conductor: bool| {
+            let alpha =
+                if clamp_roughness { (larger(alpha.0, rough_above.0), larger(alpha.1, rough_above.1)) } else { alpha };
             SpInterface {
-                mf: Microfacet::new(dist, alpha.0, alpha.1, angle),
-                eta: rel.eta.clone(),
-                kappa: rel.kappa.clone(),
+                mf: Microfacet::with_parameters(dist, alpha.0, alpha.1, value(i, Field::Angle, 0, angle)),
+                eta: channels(i, Field::Ior, &rel.eta),
+                kappa: channels(i, Field::K, &rel.kappa),
                 conductor,
                 table: Vec::new(),
             }
         };
+        let roughness =
+            |alpha: (f64, f64)| (value(i, Field::RoughnessX, 0, alpha.0), value(i, Field::RoughnessY, 0, alpha.1));
         match layer {
             Layer::Dielectric { alpha, angle, thickness, sigma_a, sigma_s, .. } => {
-                let sigma_t: Vec<f64> = sigma_a.iter().zip(sigma_s).map(|(a, s)| a + s).collect();
-                let albedo = sigma_s.iter().zip(&sigma_t).map(|(s, t)| if *t > 0.0 { s / t } else { 0.0 }).collect();
+                let (sigma_a, sigma_s) = (channels(i, Field::SigmaA, sigma_a), channels(i, Field::SigmaS, sigma_s));
+                let sigma_t: Vec<T> = sigma_a.iter().zip(&sigma_s).map(|(&a, &s)| a + s).collect();
+                let albedo: Vec<T> = sigma_s
+                    .iter()
+                    .zip(&sigma_t)
+                    .map(|(&s, &t)| if t.value() > 0.0 { s / t } else { T::from(0.0) })
+                    .collect();
+                let alpha = roughness(*alpha);
                 out.push(SpLayer::Dielectric {
-                    iface: iface(*alpha, *angle, false),
-                    thickness: *thickness,
+                    iface: iface(alpha, *angle, false),
+                    thickness: value(i, Field::Thickness, 0, *thickness),
                     sigma_t,
                     albedo,
                 });
-                rough_above = (rough_above.0.max(alpha.0), rough_above.1.max(alpha.1));
+                rough_above = (larger(rough_above.0, alpha.0), larger(rough_above.1, alpha.1));
             }
             Layer::Conductor { alpha, angle, .. } => {
-                out.push(SpLayer::Conductor { iface: iface(*alpha, *angle, true), diffuse: Vec::new() })
+                out.push(SpLayer::Conductor { iface: iface(roughness(*alpha), *angle, true), diffuse: Vec::new() })
             }
-            Layer::Diffuse { albedo, roughness } => {
-                let gain = vec![1.0; albedo.len()];
-                out.push(SpLayer::Diffuse { albedo: albedo.clone(), sigma: *roughness, gain })
-            }
+            Layer::Diffuse { albedo, roughness } => out.push(SpLayer::Diffuse {
+                albedo: channels(i, Field::Albedo, albedo),
+                sigma: value(i, Field::DiffuseRoughness, 0, *roughness),
+                gain: vec![1.0; albedo.len()],
+            }),
         }
     }
     out
+}
+
+/// The gradient (`Model::gradient`) of model `name`'s walk with respect to N parameters: the stack's layers in Duals
+/// seeded by `seeds` (`layers_with`), walked by `Walk::eval_real` with the model's passages in Duals. Exact for
+/// every field (the HG asymmetry g, which a single pass does not use, has gradient 0); Fresnel forms other than the
+/// exact one and lamina's inter-reflection corrections are refused.
+pub fn gradient<'a, const N: usize, M: RealTransport + Sync>(
+    name: &str,
+    model: &'a M,
+    walk: &'a Walk,
+    stack: &Stack,
+    dist: Distribution,
+    opts: &WalkOptions,
+    seeds: &[Seed],
+) -> Result<Gradient<'a>> {
+    if opts.fresnel != FresnelForm::Exact {
+        return value_error(format!("gradients of model '{name}' take fresnel='exact'"));
+    }
+    if opts.interreflection || opts.conductor_interreflection {
+        return value_error(format!(
+            "gradients of model '{name}' take interreflection=False and conductor_interreflection=False"
+        ));
+    }
+    let value = |layer: usize, field: Field, channel: usize, v: f64| seeded::<N>(seeds, layer, field, channel, v);
+    let layers = layers_with(stack, dist, opts.clamp_roughness, value);
+    let channels = stack.channels;
+    Ok(Box::new(move |wi, wo, out| {
+        let mut f = vec![Dual::<N>::from(0.0); channels];
+        walk.eval_real(model, &layers, wi, wo, &mut f);
+        f.into_iter().enumerate().for_each(|(c, x)| store(out, c, x));
+    }))
 }
 
 /// Cosines at which a conductor base's inter-reflection term is tabulated: uniform in [0, 1].
@@ -159,33 +222,47 @@ pub fn interreflected(diffuse: &[f64], c: usize, mu_i: f64, mu_o: f64) -> f64 {
 
 /// What a dielectric interface passes to the slab below for one channel: the light's transmission into the slab,
 /// the factor on the view side that multiplies everything below, the view-side transmission that multiplies the
-/// slab's scattering, and the refracted directions (pointing up, away from the slab's bottom).
-pub struct Passage {
-    pub t_light: f64,
-    pub t_view: f64,
-    pub t_view_slab: f64,
-    pub wi: DVec3,
-    pub wo: DVec3,
+/// slab's scattering, and the refracted directions (pointing up, away from the slab's bottom). In f64, or in Reals
+/// with directions `Dir<T>` for parameter gradients (`RealTransport`).
+pub struct Passage<T = f64, W = DVec3> {
+    pub t_light: T,
+    pub t_view: T,
+    pub t_view_slab: T,
+    pub wi: W,
+    pub wo: W,
 }
 
 /// Direction `w` refracted into a slab and flipped to point up: same azimuth, sine `sin_t`.
 #[inline(always)]
 pub fn refracted_up(w: DVec3, sin_t: f64) -> DVec3 {
-    let r = sin_theta(w);
-    let cos_t = (1.0 - sin_t * sin_t).max(0.0).sqrt();
-    if r == 0.0 {
-        return DVec3::new(0.0, 0.0, cos_t);
-    }
-    DVec3::new(w.x / r * sin_t, w.y / r * sin_t, cos_t)
+    DVec3::from(refracted_up_real(w.into(), sin_t))
 }
 
-/// Beer–Lambert transmittance exp(−σ d (1/cos θi + 1/cos θo)) along both refracted directions.
+/// `refracted_up` in Reals.
 #[inline(always)]
-pub fn beer_lambert(sigma_t: f64, thickness: f64, wi: DVec3, wo: DVec3) -> f64 {
-    if sigma_t * thickness == 0.0 {
-        return 1.0;
+pub fn refracted_up_real<T: Real>(w: Dir<T>, sin_t: T) -> Dir<T> {
+    let r = sin_theta_real(w);
+    let cos_t = (T::from(1.0) - sin_t * sin_t).max_c(0.0).sqrt();
+    if r.value() == 0.0 {
+        return [T::from(0.0), T::from(0.0), cos_t];
     }
-    (-sigma_t * thickness * (1.0 / wi.z.max(1e-9) + 1.0 / wo.z.max(1e-9))).exp()
+    [w[0] / r * sin_t, w[1] / r * sin_t, cos_t]
+}
+
+/// sin θ = √(x² + y²) of a unit direction in Reals (optics::sin_theta).
+#[inline(always)]
+pub fn sin_theta_real<T: Real>(w: Dir<T>) -> T {
+    (w[0] * w[0] + w[1] * w[1]).sqrt()
+}
+
+/// Beer–Lambert transmittance exp(−σ d (1/cos θi + 1/cos θo)) along both refracted directions, of their cosines.
+#[inline(always)]
+pub fn beer_lambert<T: Real>(sigma_t: T, thickness: T, cos_i: T, cos_o: T) -> T {
+    // σ d = 0 with its derivatives (`same`): nothing to attenuate, nor to differentiate.
+    if (sigma_t * thickness).same(T::from(0.0)) {
+        return T::from(1.0);
+    }
+    (-sigma_t * thickness * (T::from(1.0) / cos_i.max_c(1e-9) + T::from(1.0) / cos_o.max_c(1e-9))).exp()
 }
 
 /// What distinguishes one single-pass model from another: its lobe geometry and how a dielectric interface transmits.
@@ -194,6 +271,19 @@ pub trait Transport {
     fn lobe(&self, iface: &SpInterface, wi: DVec3, wo: DVec3) -> Option<(f64, f64)>;
     /// The passage of channel `c` (and of every channel sharing its IOR) into the slab below.
     fn passage(&self, iface: &SpInterface, wi: DVec3, wo: DVec3, c: usize) -> Option<Passage>;
+}
+
+/// `Transport::passage` in Reals (f64 or Duals), with the exact Fresnel form: what a single-pass model gives
+/// `Walk::eval_real` for parameter gradients.
+pub trait RealTransport {
+    /// The passage of channel `c` (and of every channel sharing its IOR) into the slab below.
+    fn passage_real<T: Real>(
+        &self,
+        iface: &SpInterface<T>,
+        wi: Dir<T>,
+        wo: Dir<T>,
+        c: usize,
+    ) -> Option<Passage<T, Dir<T>>>;
 }
 
 /// Most channels evaluated together (a group shares one pass through the stack).
@@ -343,7 +433,7 @@ impl Walk {
                         let through = p.t_light * compression;
                         let o = &mut out[r * k..][..k];
                         for (c, g) in channels() {
-                            let a = beer_lambert(sigma_t[c], *thickness, p.wi, p.wo);
+                            let a = beer_lambert(sigma_t[c], *thickness, p.wi.z, p.wo.z);
                             o[c] += weight[r][g] * through * p.t_view_slab * (1.0 - a) * albedo[c] * FRAC_1_PI;
                             weight[r][g] *= through * p.t_view * a;
                         }
@@ -420,6 +510,66 @@ impl Walk {
 }
 
 impl Walk {
+    /// f at one pair (wi, wo) in Reals (f64 or Duals, for parameter gradients): `eval_group`'s walk, the same
+    /// arithmetic, over `layers` from `layers_with` and the model's passages in Reals, with the exact Fresnel form
+    /// and without corrections (`gradient` refuses them).
+    pub fn eval_real<T: Real>(
+        &self,
+        model: &impl RealTransport,
+        layers: &[SpLayer<T>],
+        wi: DVec3,
+        wo: DVec3,
+        out: &mut [T],
+    ) {
+        out.fill(T::from(0.0));
+        if wi.z <= 0.0 || wo.z <= 0.0 {
+            return;
+        }
+        for group in &self.groups {
+            let c0 = group.start;
+            let channels = || group.clone().zip(0..);
+            let (mut wi, mut wo) = (dir::<T>(wi), dir::<T>(wo));
+            let mut weight = [T::from(1.0); GROUP];
+            for layer in layers {
+                if let Some(i) = layer.interface() {
+                    if let Some((geo, cos_h)) = bsdf::reflection_geometry::<T, T>(&i.mf, self.g2, wi, wo) {
+                        for (c, g) in channels() {
+                            let f = match i.conductor {
+                                true => fresnel::conductor(cos_h, i.eta[c], i.kappa[c]),
+                                false => fresnel::dielectric(cos_h, i.eta[c]),
+                            };
+                            out[c] = out[c] + weight[g] * geo * f;
+                        }
+                    }
+                }
+                match layer {
+                    SpLayer::Dielectric { iface, thickness, sigma_t, albedo } => {
+                        let Some(p) = model.passage_real(iface, wi, wo, c0) else { break };
+                        let compression = match self.eta2 {
+                            true => T::from(1.0) / (iface.eta[c0] * iface.eta[c0]),
+                            false => T::from(1.0),
+                        };
+                        let through = p.t_light * compression;
+                        for (c, g) in channels() {
+                            let a = beer_lambert(sigma_t[c], *thickness, p.wi[2], p.wo[2]);
+                            out[c] = out[c]
+                                + weight[g] * through * p.t_view_slab * (T::from(1.0) - a) * albedo[c] * FRAC_1_PI;
+                            weight[g] = weight[g] * through * p.t_view * a;
+                        }
+                        (wi, wo) = (p.wi, p.wo);
+                    }
+                    SpLayer::Conductor { .. } => {}
+                    SpLayer::Diffuse { albedo, sigma, .. } => {
+                        let shape = diffuse::oren_nayar_shape(*sigma, wi, wo);
+                        for (c, g) in channels() {
+                            out[c] = out[c] + weight[g] * albedo[c] * shape;
+                        }
+                    }
+                }
+            }
+        }
+    }
+
     /// The energies of the walk's terms for the viewing direction wo, one estimate per term, and what smooth
     /// interfaces reached through smooth ones reflect as a Dirac lobe (`mirror`, per channel). Estimates, not the
     /// model: Fresnel at the macro-surface cosine, Snell at the mean IOR, Beer–Lambert along the refracted direction
@@ -540,6 +690,7 @@ mod tests {
     use super::*;
     use crate::models::common::testing::{channel, dir};
     use crate::models::steinberg;
+    use crate::optics::sin_theta;
 
     #[test]
     fn refraction_keeps_the_azimuth_and_obeys_snell() {
