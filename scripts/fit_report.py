@@ -135,13 +135,17 @@ def peer_section(rng) -> tuple:
         # Lobes in the plane of incidence at θi = 30° and 60°.
         to = np.radians(np.linspace(-85, 85, 171))
         wo_line = np.stack([np.sin(to), np.zeros_like(to), np.cos(to)], -1)
+        # One colour per model (the catalogue's order, in both panels), one line style per θi.
+        colour = {m.name: f"C{i}" for i, m in enumerate(lamina.models())}
         for ti, style in ((30.0, "-"), (60.0, "--")):
             wi_line = np.tile([np.sin(np.radians(ti)), 0.0, np.cos(np.radians(ti))], (len(to), 1))
             ax.plot(np.degrees(to), eval_f(bsdf, wi_line, -wo_line * [1, 1, -1])[:, 1], "k" + style, lw=2.2)
             for model, r in result.fits.items():
                 f = r.stack.eval(wi_line, -wo_line * [1, 1, -1], model)[:, 1]
-                ax.plot(np.degrees(to), f, style, lw=1.2, label=f"{model}, θi {ti:.0f}°")
+                ax.plot(np.degrees(to), f, style, color=colour[model], lw=1.2, label=model if ti == 30.0 else None)
         ax.plot([], [], "k-", lw=2.2, label="Mitsuba (data)")
+        ax.plot([], [], "k-", lw=0.8, label="θi 30° (solid)")
+        ax.plot([], [], "k--", lw=0.8, label="θi 60° (dashed)")
         ax.set(title=name, xlabel="θo in the plane of incidence (°; mirror side > 0)", ylabel="f, green (1/sr)")
         ax.set_yscale("log")
         ax.legend(fontsize=7)
