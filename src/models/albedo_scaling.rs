@@ -29,7 +29,7 @@ use super::common::block::eval_rows;
 use super::common::mixture::defensive_mixture;
 use super::common::mixture_lanes::{self, mean, LaneMixture, Proposals, MAX_TERMS};
 use super::common::options::{choice, flag, g2};
-use super::common::single_pass::{self, beer_lambert, refracted_up_real, SpInterface, SpLayer};
+use super::common::single_pass::{self, beer_lambert, refracted_up, SpInterface, SpLayer};
 use super::common::walk_lanes::{self, MAX_CHANNELS};
 use super::{
     seeded, store, Args, Field, Gradient, InputSpec, Inputs, Model, ModelInfo, OptionSpec, Properties, Proposal, Seed,
@@ -190,7 +190,7 @@ fn scale<T: Real>(i: &SpInterface<T>, slab: (T, &[T]), reciprocal: bool, wi: DVe
     let (thickness, sigma_t) = slab;
     let view = unreflected(i, wo.z, c);
     let light = if reciprocal { unreflected(i, wi.z, c) } else { T::from(1.0) };
-    let down = |w: DVec3| refracted_up_real(dir::<T>(w), T::from(sin_theta(w)) / i.eta[c])[2];
+    let down = |w: DVec3| refracted_up(dir::<T>(w), T::from(sin_theta(w)) / i.eta[c])[2];
     (light * view).max_c(0.0) * beer_lambert(sigma_t[c], thickness, down(wi), down(wo))
 }
 

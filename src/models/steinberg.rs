@@ -32,7 +32,7 @@ use super::common::options::{
     MICROFACET_TRANSMISSION, TRANSPORT_FIT,
 };
 use super::common::single_pass::{
-    self, refracted_up_real, Passage, RealTransport, SpInterface, SpLayer, Transport, Walk, WalkOptions,
+    self, refracted_up, Passage, RealTransport, SpInterface, SpLayer, Transport, Walk, WalkOptions,
 };
 use super::common::walk_lanes::{self, LanePassage, LaneTransport, LaneWalk};
 use super::corrections::{interreflection, transport_fit};
@@ -241,9 +241,7 @@ impl Transport for Prepared {
     /// `passage_real` in f64.
     #[inline(always)]
     fn passage(&self, iface: &SpInterface, wi: DVec3, wo: DVec3, c: usize) -> Option<Passage> {
-        let p = self.passage_real(iface, wi.into(), wo.into(), c)?;
-        let (wi, wo) = (p.wi.into(), p.wo.into());
-        Some(Passage { t_light: p.t_light, t_view: p.t_view, t_view_slab: p.t_view_slab, wi, wo })
+        self.passage_real(iface, wi.into(), wo.into(), c).map(Passage::from)
     }
 }
 
@@ -272,8 +270,8 @@ impl RealTransport for Prepared {
             t_light: t_i,
             t_view: t_o,
             t_view_slab: t_o,
-            wi: refracted_up_real(wi, s_i),
-            wo: refracted_up_real(wo, s_o),
+            wi: refracted_up(wi, s_i),
+            wo: refracted_up(wo, s_o),
         })
     }
 }

@@ -40,8 +40,7 @@ use super::common::options::{
     INTERREFLECTION, TRANSPORT_FIT,
 };
 use super::common::single_pass::{
-    self, refracted_up, refracted_up_real, sin_theta_real, Passage, RealTransport, SpInterface, SpLayer, Transport,
-    Walk, WalkOptions,
+    self, refracted_up, Passage, RealTransport, SpInterface, SpLayer, Transport, Walk, WalkOptions,
 };
 use super::common::walk_lanes::{self, LanePassage, LaneTransport, LaneWalk};
 use super::corrections::{interreflection, transport_fit};
@@ -260,29 +259,16 @@ impl Transport for Prepared {
         Some((geo * beckmann_table().lookup(h.z, mf.alpha_x) / mf.d(h), cos_h))
     }
 
-    /// Snell's law at the macro-surface; T₁₂ = 1 − F(cos θL) into the layer, t = (1 − G) + T₂₁ G out of it.
+    /// `snell` with the option's Fresnel form (or Elek's tables).
     #[inline(always)]
     fn passage(&self, iface: &SpInterface, wi: DVec3, wo: DVec3, c: usize) -> Option<Passage> {
-        let eta = iface.eta[c];
-        let (sin_i, sin_o) = (sin_theta(wi) / eta, sin_theta(wo) / eta);
-        if sin_i >= 1.0 || sin_o >= 1.0 {
-            return None; // total internal reflection at the macro-surface
-        }
-        let t12 = iface.transmittance(self.walk.fresnel, wi.z, c);
-        let t21 = iface.transmittance(self.walk.fresnel, wo.z, c);
-        let g = if iface.mf.is_smooth() { 1.0 } else { iface.mf.g2(self.walk.g2, wi, wo, (wi + wo).normalize()) };
-        Some(Passage {
-            t_light: t12,
-            t_view: (1.0 - g) + t21 * g,
-            t_view_slab: t21,
-            wi: refracted_up(wi, sin_i),
-            wo: refracted_up(wo, sin_o),
-        })
+        let transmittance = |cos: f64| iface.transmittance(self.walk.fresnel, cos, c);
+        self.snell(iface, wi.into(), wo.into(), c, transmittance).map(Passage::from)
     }
 }
 
 impl RealTransport for Prepared {
-    /// `passage` in Reals, with the exact Fresnel form (the gradient's).
+    /// `snell` with the exact Fresnel form (the gradient's).
     #[inline(always)]
     fn passage_real<T: Real>(
         &self,
@@ -291,12 +277,28 @@ impl RealTransport for Prepared {
         wo: Dir<T>,
         c: usize,
     ) -> Option<Passage<T, Dir<T>>> {
+        self.snell(iface, wi, wo, c, |cos| fresnel::dielectric_transmittance(cos, iface.eta[c]))
+    }
+}
+
+impl Prepared {
+    /// Snell's law at the macro-surface; T₁₂ = 1 − F(cos θL) into the layer, t = (1 − G) + T₂₁ G out of it, with
+    /// 1 − F of a cosine from `transmittance`. In f64, or in Duals for gradients.
+    #[inline(always)]
+    fn snell<T: Real>(
+        &self,
+        iface: &SpInterface<T>,
+        wi: Dir<T>,
+        wo: Dir<T>,
+        c: usize,
+        transmittance: impl Fn(T) -> T,
+    ) -> Option<Passage<T, Dir<T>>> {
         let eta = iface.eta[c];
-        let (sin_i, sin_o) = (sin_theta_real(wi) / eta, sin_theta_real(wo) / eta);
+        let (sin_i, sin_o) = (sin_theta(wi) / eta, sin_theta(wo) / eta);
         if sin_i.value() >= 1.0 || sin_o.value() >= 1.0 {
-            return None;
+            return None; // total internal reflection at the macro-surface
         }
-        let (t12, t21) = (fresnel::dielectric_transmittance(wi[2], eta), fresnel::dielectric_transmittance(wo[2], eta));
+        let (t12, t21) = (transmittance(wi[2]), transmittance(wo[2]));
         let g = match iface.mf.is_smooth() {
             true => T::from(1.0),
             false => {
@@ -307,13 +309,11 @@ impl RealTransport for Prepared {
             t_light: t12,
             t_view: (T::from(1.0) - g) + t21 * g,
             t_view_slab: t21,
-            wi: refracted_up_real(wi, sin_i),
-            wo: refracted_up_real(wo, sin_o),
+            wi: refracted_up(wi, sin_i),
+            wo: refracted_up(wo, sin_o),
         })
     }
-}
 
-impl Prepared {
     #[inline(always)]
     fn eval_columns(&self, wi: [&[f64]; 3], wo: [&[f64]; 3], out: &mut [f64]) {
         self.walk.eval_block(self, &self.walk.layers, wi, wo, None, &[1.0], out)

@@ -17,10 +17,11 @@ pub fn cos_theta(w: DVec3) -> f64 {
 }
 
 /// sin θ of a unit direction in the local frame, from its tangent components (√(x² + y²): a unit direction cannot
-/// overflow, so no `hypot`, which is slow).
+/// overflow, so no `hypot`, which is slow); in f64 or in Duals.
 #[inline(always)]
-pub fn sin_theta(w: DVec3) -> f64 {
-    (w.x * w.x + w.y * w.y).sqrt()
+pub fn sin_theta<T: Real>(w: impl Into<Dir<T>>) -> T {
+    let [x, y, _] = w.into();
+    (x * x + y * y).sqrt()
 }
 
 /// Mirror reflection of `w` about the normal `n` (both unit, pointing away from the surface).

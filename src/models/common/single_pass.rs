@@ -23,9 +23,9 @@ use crate::bsdf;
 use crate::dual::{dir, Dir, Dual, Real};
 use crate::error::{value_error, Result};
 use crate::models::{seeded, store, Gradient, Proposal, Seed};
-use crate::optics::diffuse;
 use crate::optics::distribution::{Distribution, G2Form, Microfacet};
 use crate::optics::fresnel::{self, FresnelForm};
+use crate::optics::{diffuse, sin_theta};
 use crate::sampling::orthonormal_basis;
 use crate::stack::{Field, Layer, Stack};
 use crate::tables::elek::FresnelTable;
@@ -232,27 +232,22 @@ pub struct Passage<T = f64, W = DVec3> {
     pub wo: W,
 }
 
-/// Direction `w` refracted into a slab and flipped to point up: same azimuth, sine `sin_t`.
-#[inline(always)]
-pub fn refracted_up(w: DVec3, sin_t: f64) -> DVec3 {
-    DVec3::from(refracted_up_real(w.into(), sin_t))
+impl From<Passage<f64, Dir<f64>>> for Passage {
+    fn from(p: Passage<f64, Dir<f64>>) -> Passage {
+        let (wi, wo) = (p.wi.into(), p.wo.into());
+        Passage { t_light: p.t_light, t_view: p.t_view, t_view_slab: p.t_view_slab, wi, wo }
+    }
 }
 
-/// `refracted_up` in Reals.
+/// Direction `w` refracted into a slab and flipped to point up: same azimuth, sine `sin_t`; in f64 or in Duals.
 #[inline(always)]
-pub fn refracted_up_real<T: Real>(w: Dir<T>, sin_t: T) -> Dir<T> {
-    let r = sin_theta_real(w);
+pub fn refracted_up<T: Real>(w: Dir<T>, sin_t: T) -> Dir<T> {
+    let r = sin_theta(w);
     let cos_t = (T::from(1.0) - sin_t * sin_t).max_c(0.0).sqrt();
     if r.value() == 0.0 {
         return [T::from(0.0), T::from(0.0), cos_t];
     }
     [w[0] / r * sin_t, w[1] / r * sin_t, cos_t]
-}
-
-/// sin θ = √(x² + y²) of a unit direction in Reals (optics::sin_theta).
-#[inline(always)]
-pub fn sin_theta_real<T: Real>(w: Dir<T>) -> T {
-    (w[0] * w[0] + w[1] * w[1]).sqrt()
 }
 
 /// Beer–Lambert transmittance exp(−σ d (1/cos θi + 1/cos θo)) along both refracted directions, of their cosines.
@@ -690,14 +685,13 @@ mod tests {
     use super::*;
     use crate::models::common::testing::{channel, dir};
     use crate::models::steinberg;
-    use crate::optics::sin_theta;
 
     #[test]
     fn refraction_keeps_the_azimuth_and_obeys_snell() {
         for (theta, phi) in [(0.0, 0.0), (30.0, 45.0), (80.0, 200.0)] {
             let w = dir(theta, phi);
             let sin_t = sin_theta(w) / 1.5;
-            let r = refracted_up(w, sin_t);
+            let r = DVec3::from(refracted_up(w.into(), sin_t));
             assert!((r.length() - 1.0).abs() < 1e-15 && (sin_theta(r) - sin_t).abs() < 1e-15);
             if theta > 0.0 {
                 assert!((r.y.atan2(r.x) - w.y.atan2(w.x)).abs() < 1e-14, "{w} -> {r}");
