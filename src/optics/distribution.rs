@@ -164,7 +164,8 @@ impl<T: Real> Microfacet<T> {
         }
     }
 
-    /// Masking-shadowing of the chosen form; the V-cavity's carries no derivative by directions that parameters move.
+    /// Masking-shadowing of the chosen form; the V-cavity's carries no derivative by directions that parameters move
+    /// (`g2_at`'s does).
     #[inline(always)]
     pub fn g2<A: Real, B: Real>(&self, form: G2Form, wi: impl Into<Dir<A>>, wo: impl Into<Dir<B>>, m: DVec3) -> T
     where
