@@ -2,7 +2,7 @@
 //! dielectric) and rough dielectric transmission (Walter et al. 2007), from either side. All return f without
 //! the cosine; directions point away from the surface (docs/conventions.md).
 
-use crate::dual::{dir, dot, normalize, value, Dir, Real, With};
+use crate::dual::{dir, dot, normalize, plus, value, Dir, Real, With};
 use crate::optics::distribution::{G2Form, Microfacet};
 use crate::optics::fresnel;
 use glam::DVec3;
@@ -23,7 +23,7 @@ where
 {
     let (wi, wo) = (wi.into(), wo.into());
     // Computed first and selected last (no early return), so that loops over it vectorize.
-    let h = normalize([wi[0] + wo[0], wi[1] + wo[1], wi[2] + wo[2]]);
+    let h = normalize(plus(wi, wo));
     let h = if h[2].value() < 0.0 { h.map(|x| -x) } else { h };
     let g = mf.g2_at(form, wi, wo, h);
     let geo = mf.d(h) * g / ((wi[2] * wo[2]).abs() * 4.0);

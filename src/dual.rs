@@ -134,6 +134,12 @@ pub fn dot<T: Real>(a: Dir<T>, b: Dir<T>) -> T {
     a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
 }
 
+/// a + b.
+#[inline(always)]
+pub fn plus<T: Real>(a: Dir<T>, b: Dir<T>) -> Dir<T> {
+    [a[0] + b[0], a[1] + b[1], a[2] + b[2]]
+}
+
 /// a / |a|, as glam normalizes (times the reciprocal of the length).
 #[inline(always)]
 pub fn normalize<T: Real>(a: Dir<T>) -> Dir<T> {

@@ -46,7 +46,7 @@ use super::common::walk_lanes::{self, LanePassage, LaneTransport, LaneWalk};
 use super::corrections::{interreflection, transport_fit};
 use super::{Args, Field, Gradient, InputSpec, Inputs, Model, ModelInfo, OptionSpec, Properties, Proposal, Seed};
 use crate::bsdf;
-use crate::dual::{normalize, Dir, Real};
+use crate::dual::{normalize, plus, Dir, Real};
 use crate::engine::{self, Floats, Rows, V3};
 use crate::error::{value_error, Result};
 use crate::models::FitLanes;
@@ -301,9 +301,7 @@ impl Prepared {
         let (t12, t21) = (transmittance(wi[2]), transmittance(wo[2]));
         let g = match iface.mf.is_smooth() {
             true => T::from(1.0),
-            false => {
-                iface.mf.g2_at::<T>(self.walk.g2, wi, wo, normalize([wi[0] + wo[0], wi[1] + wo[1], wi[2] + wo[2]]))
-            }
+            false => iface.mf.g2_at::<T>(self.walk.g2, wi, wo, normalize(plus(wi, wo))),
         };
         Some(Passage {
             t_light: t12,
