@@ -82,12 +82,13 @@ pub struct Prepared {
 /// The file name of the cached table of `stack` on `surface` (a hash of everything the table depends on).
 fn cache_name(stack: &Stack, surface: Microsurface) -> String {
     let mut h = DefaultHasher::new();
-    // "diffuse": the table without the Dirac part below a smooth top (before, it blurred that part into cells).
+    // "diffuse": the table without the Dirac part below a smooth top (before, it blurred that part into cells);
+    // "refraction": smooth refractions integrated in the outside cosine (before, at each overlap's midpoint).
     let grid = match anisotropic::is_anisotropic(stack, surface) {
         true => format!("anisotropic {}x{}", anisotropic::NZ, anisotropic::NA),
         false => format!("{N_THETA}x{ORDERS}x{N_PHI}"),
     };
-    format!("{stack:?}|{:?}|{:?}|{grid}|diffuse|trapped", surface.distribution, surface.g2).hash(&mut h);
+    format!("{stack:?}|{:?}|{:?}|{grid}|diffuse|trapped|refraction", surface.distribution, surface.g2).hash(&mut h);
     format!("tabulated-{:016x}.f32", h.finish())
 }
 
