@@ -53,7 +53,7 @@ pub fn pair(i: usize, o: usize) -> usize {
 pub const PAIRS: usize = NODES * (NODES + 1) / 2;
 /// Gauss points per cell (in u) of the cell averages.
 const SUB: usize = 2;
-/// Gauss points of `outside_integral` (a smooth interface's Fresnel terms over part of a cell).
+/// Gauss points of `Cells::outside_integral` (a smooth interface's Fresnel terms over part of a cell).
 const OUTSIDE_POINTS: usize = 4;
 /// Midpoint samples over φ ∈ [0, π] of the Fourier projections.
 const PHI_SAMPLES: usize = 2 * ORDERS;
@@ -68,11 +68,13 @@ type Mat<T = f64> = Vec<T>;
 /// One matrix per Fourier order.
 pub(super) type Op<T = f64> = Vec<Mat<T>>;
 
-/// The zenith cells: weights w_j = Δu/2 and Gauss points (u, weight), SUB per cell, weights summing to w_j.
+/// The zenith cells: weights w_j = Δu/2 and Gauss points (u, weight), SUB per cell, weights summing to w_j; and the
+/// Gauss rule of `outside_integral` on [−1, 1].
 pub struct Cells {
     pub w: Vec<f64>,
     pub(super) edges: Vec<f64>,
     points: Vec<(f64, f64)>,
+    outside: Vec<(f64, f64)>,
 }
 
 impl Cells {
@@ -90,7 +92,8 @@ impl Cells {
                 gl.iter().map(move |&(x, v)| (a + 0.5 * (b - a) * (x + 1.0), 0.25 * (b - a) * v))
             })
             .collect();
-        Cells { w: (0..n).map(|j| 0.5 * (edges[j + 1] - edges[j])).collect(), edges, points }
+        let w = (0..n).map(|j| 0.5 * (edges[j + 1] - edges[j])).collect();
+        Cells { w, edges, points, outside: gauss_legendre(OUTSIDE_POINTS) }
     }
 
     /// Gauss points of cell j: (u, weight).
@@ -116,29 +119,30 @@ impl Cells {
     fn fresnel_average<T: Real>(&self, j: usize, eta: T) -> T {
         let (a, b) = (self.edges[j], self.edges[j + 1]);
         let c = if eta.value() < 1.0 { (eta * eta).clamp_c(a, b) } else { T::from(b) };
-        let refracting = outside_integral(T::from(a), c, eta, |u| fresnel::dielectric((T::from(1.0) - u).sqrt(), eta));
+        let refracting =
+            self.outside_integral(T::from(a), c, eta, |u| fresnel::dielectric((T::from(1.0) - u).sqrt(), eta));
         (refracting + (T::from(b) - c)) / (b - a)
     }
-}
 
-/// ∫ g(u) du over [lo, hi], u = sin²θ on the side of a smooth interface of relative IOR `eta` (to the other side), by
-/// Gauss points in the cosine μ on the outside (the side of lower index: u = η² (1 − μ²) for η < 1, else 1 − μ²).
-/// A smooth interface's Fresnel terms are smooth in μ up to grazing incidence outside and up to the critical angle
-/// inside, where they have a square-root cusp in u: Gauss points in u (as before) made the solve's ∂f/∂η jump (from
-/// +0.32 to −0.09 within Δη = 2e-5 at grazing pairs, under a smooth coat) as the critical angle crossed a cell's
-/// edge, which stopped fits at those kinks short of their optimum.
-fn outside_integral<T: Real>(lo: T, hi: T, eta: T, g: impl Fn(T) -> T) -> T {
-    let e2 = if eta.value() < 1.0 { eta * eta } else { T::from(1.0) };
-    let cosine = |u: T| (T::from(1.0) - u / e2).max_c(0.0).sqrt();
-    let (mu_lo, mu_hi) = (cosine(hi), cosine(lo));
-    // du = 2 η² μ dμ (η² read as 1 outside).
-    gauss_legendre(OUTSIDE_POINTS)
-        .iter()
-        .map(|&(x, v)| {
-            let mu = mu_lo + (mu_hi - mu_lo) * (0.5 * (x + 1.0));
-            g(e2 * (T::from(1.0) - mu * mu)) * e2 * mu * (mu_hi - mu_lo) * v
-        })
-        .sum()
+    /// ∫ g(u) du over [lo, hi], u = sin²θ on the side of a smooth interface of relative IOR `eta` (to the other
+    /// side), by Gauss points in the cosine μ on the outside (the side of lower index: u = η² (1 − μ²) for η < 1,
+    /// else 1 − μ²). A smooth interface's Fresnel terms are smooth in μ up to grazing incidence outside and up to the
+    /// critical angle inside, where they have a square-root cusp in u: Gauss points in u (as before) made the solve's
+    /// ∂f/∂η jump (from +0.32 to −0.09 within Δη = 2e-5 at grazing pairs, under a smooth coat) as the critical angle
+    /// crossed a cell's edge, which stopped fits at those kinks short of their optimum.
+    fn outside_integral<T: Real>(&self, lo: T, hi: T, eta: T, g: impl Fn(T) -> T) -> T {
+        let e2 = if eta.value() < 1.0 { eta * eta } else { T::from(1.0) };
+        let cosine = |u: T| (T::from(1.0) - u / e2).max_c(0.0).sqrt();
+        let (mu_lo, mu_hi) = (cosine(hi), cosine(lo));
+        // du = 2 η² μ dμ (η² read as 1 outside).
+        self.outside
+            .iter()
+            .map(|&(x, v)| {
+                let mu = mu_lo + (mu_hi - mu_lo) * (0.5 * (x + 1.0));
+                g(e2 * (T::from(1.0) - mu * mu)) * e2 * mu * (mu_hi - mu_lo) * v
+            })
+            .sum()
+    }
 }
 
 impl Default for Cells {
@@ -351,7 +355,7 @@ fn cell_energy<T: Real>(cells: &Cells, j: usize, e: impl Fn(DVec3) -> T) -> T {
 
 /// Refraction through a smooth interface from a medium into one of relative IOR `r` (n_to / n_from): each incident
 /// cell's u-range maps to u / r² (Snell), radiance scales by r², times 1 − F; what maps beyond u = 1 is totally
-/// reflected. 1 − F is integrated over each overlap of an incident and an outgoing cell (`outside_integral`).
+/// reflected. 1 − F is integrated over each overlap of an incident and an outgoing cell (`Cells::outside_integral`).
 fn smooth_refraction<T: Real>(cells: &Cells, r: T) -> Mat<T> {
     let n = N_THETA;
     let mut m = zeros();
@@ -366,6 +370,7 @@ fn smooth_refraction<T: Real>(cells: &Cells, r: T) -> Mat<T> {
         },
     );
     let r2 = r * r;
+    let t = |u: T| fresnel::dielectric_transmittance((T::from(1.0) - u).max_c(0.0).sqrt(), r);
     for j in 0..n {
         let (a, b) = (T::from(cells.edges[j]) / r2, min(T::from(cells.edges[j + 1]) / r2, 1.0));
         for o in 0..n {
@@ -373,8 +378,7 @@ fn smooth_refraction<T: Real>(cells: &Cells, r: T) -> Mat<T> {
             let (lo, hi) = (max(a, c), min(b, d));
             if hi.value() > lo.value() {
                 // r² ∫ (1 − F) du_to over the overlap = ∫ (1 − F) du_from.
-                let t = |u: T| fresnel::dielectric_transmittance((T::from(1.0) - u).max_c(0.0).sqrt(), r);
-                m[o * n + j] = outside_integral(lo * r2, hi * r2, r, t) / (d - c);
+                m[o * n + j] = cells.outside_integral(lo * r2, hi * r2, r, t) / (d - c);
             }
         }
     }
