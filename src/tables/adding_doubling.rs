@@ -385,6 +385,37 @@ fn smooth_refraction<T: Real>(cells: &Cells, r: T) -> Mat<T> {
     m
 }
 
+/// The optical depth of the slab below the top of `s` that light crosses unscattered only by not being absorbed: its
+/// σa × thickness when it does not scatter, else 0 (`node_entering` then counts the top alone).
+pub fn clear_depth<T: Real>(s: &ChannelStack<T>) -> T {
+    let slab = &s.slabs[0];
+    match slab.sigma_s.same(T::from(0.0)) {
+        true => slab.sigma_a * slab.thickness,
+        false => T::from(0.0),
+    }
+}
+
+/// What of the light incident from above at each table node crosses the smooth top of `s` and the clear slab below
+/// it (`clear_depth`), as the solve carries it: each cell's transmittance 1 − F̄ times the Beer–Lambert cell
+/// averages of the slab where its refraction lands (`smooth_refraction`'s shares), weighted as `node_values` weighs
+/// the cells. The table divides by it at both nodes; tabulated's `entering` is its exact value. 1 for a top less
+/// dense than the outside, whose total reflection leaves nodes without light (not factored).
+fn node_entering<T: Real>(cells: &Cells, s: &ChannelStack<T>) -> Vec<T> {
+    let (n, eta, depth) = (N_THETA, s.interfaces[0].eta, clear_depth(s));
+    if eta.value() < 1.0 {
+        return vec![T::from(1.0); NODES];
+    }
+    let shares = smooth_refraction(cells, eta);
+    let beer: Vec<T> = (0..n).map(|o| cells.average(o, |mu| (-depth / mu).exp())).collect();
+    let cell = |j: usize| {
+        let share = |o: usize| shares[o * n + j] * cells.w[o];
+        let (all, crossing) =
+            (0..n).fold((T::from(0.0), T::from(0.0)), |(a, c), o| (a + share(o), c + share(o) * beer[o]));
+        (T::from(1.0) - cells.fresnel_average(j, eta)) * crossing / all
+    };
+    (0..=n).map(|k| node_cells(k, n).into_iter().map(|(j, w)| cell(j) * w).sum()).collect()
+}
+
 /// A layer's four operators: reflection of light from above and from below, transmission downward and upward.
 pub(super) struct Operators<T = f64> {
     pub(super) r_top: Op<T>,
@@ -642,8 +673,11 @@ pub fn tabulate(stack: &Stack, surface: Microsurface) -> Result<Vec<f32>> {
 /// by the parameters that `channel(c)`'s numbers carry): `tabulate`'s layout for `channels` channel stacks
 /// `channel(c)`, those of equal `key(c)` solved once. A node's Fourier coefficients are those of the cells beside it,
 /// averaged; at θ = 0 only order 0 remains (f does not depend on the azimuth there). Reciprocal (the average of
-/// (i, o) and (o, i), stored once). Without the Dirac part below a smooth top (`ChannelStack::dirac_reflectance`,
-/// which the model adds exactly).
+/// (i, o) and (o, i), stored once). Below a smooth top: without the Dirac part (`ChannelStack::dirac_reflectance`,
+/// which the model adds exactly), and divided at both nodes by what enters through the top and its clear slab
+/// (`node_entering`, as the solve carries it), which vanishes at grazing angles like cos θ and which the cells
+/// discretize coarsely where refraction packs many outside cells into one inside: the model multiplies the
+/// interpolation by the exact values, so that the table interpolates only what varies slowly.
 pub fn node_values<T: Real, K: PartialEq>(
     channels: usize,
     channel: impl Fn(usize) -> ChannelStack<T>,
@@ -671,6 +705,12 @@ pub fn node_values<T: Real, K: PartialEq>(
         }
         done.push((key, c));
         let s = channel(c);
+        // Below a smooth top, f / (Āi Āo): what enters through the top and its clear slab, steep near grazing,
+        // factored out of what the table interpolates (the model multiplies by the exact values).
+        let t = match s.is_delta(0) {
+            true => node_entering(&cells, &s),
+            false => vec![T::from(1.0); NODES],
+        };
         let mut r = reflection_below_top(&cells, &s, Paths::All, &shared)?;
         if s.is_delta(0) {
             // Below a smooth top, smooth boundaries reflect Dirac lobes that cells would blur: the model adds them
@@ -690,9 +730,10 @@ pub fn node_values<T: Real, K: PartialEq>(
                         (0..orders).for_each(|m| am[m] = am[m] + coefficient(m, co, ci) * (wi * wo));
                     }
                 }
+                let transmitted = t[i] * t[o];
                 for p in 0..N_PHI {
                     let f: T = am.iter().zip(&cosines[p * ORDERS..(p + 1) * ORDERS]).map(|(&a, &c)| a * c).sum();
-                    table[(pair(i, o) * N_PHI + p) * ch + c] = f;
+                    table[(pair(i, o) * N_PHI + p) * ch + c] = f / transmitted;
                 }
             }
         }

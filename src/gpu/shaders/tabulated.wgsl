@@ -14,7 +14,8 @@ struct Params {
     top: Microfacet,
     lobes: u32,         // the inner rough boundaries' lobes (sampling)
     pad0: u32,
-    values_base: u32,   // where the stack's values start in `values`: the top's relative IOR per channel, then
+    values_base: u32,   // where the stack's values start in `values`: the top's relative IOR per channel, the
+                        // clear slab's depth below a smooth top per channel, then
     lobes_at: u32,      // (from values_base) the inner lobes, 6 values each (Microfacet), and
     albedo_at: u32,     // (from values_base) the albedo below the top per zenith node (NODES values)
     table_base: u32,    // where the stack's table starts in `table`
@@ -32,6 +33,21 @@ var<private> params: Params;
 
 fn eta(ch: u32) -> f32 {
     return values[params.values_base + ch];
+}
+
+// The clear slab's optical depth below a smooth top, channel ch (adding_doubling::clear_depth).
+fn depth(ch: u32) -> f32 {
+    return values[params.values_base + params.channels + ch];
+}
+
+// tabulated::entering: what of the light at zenith cosine z crosses a smooth top of relative IOR eta and the clear
+// slab of optical depth d below it, T(z) e^(−d / cos θt); 1 for a top less dense than the outside.
+fn entering(z: f32, eta: f32, d: f32) -> f32 {
+    if eta < 1.0 {
+        return 1.0;
+    }
+    let cos_t = sqrt(max((z * z + eta * eta - 1.0) / (eta * eta), 1e-12));
+    return fresnel_dielectric_transmittance(z, eta) * exp(-d / cos_t);
 }
 
 // adding_doubling::pair: where the records of the zenith nodes (i, o) start, i and o in either order.
@@ -64,7 +80,7 @@ fn eval_pair(wi: vec3<f32>, wo: vec3<f32>, base: u32) {
     let np = table_node(sqrt(max(0.5 * (1.0 - cos_phi), 0.0)), N_PHI);
     let ch = params.channels;
     for (var c = 0u; c < ch; c++) {
-        var f = geo.x * fresnel_dielectric(geo.y, eta(c));
+        var f = 0.0;
         if above {
             for (var di = 0u; di < 2u; di++) {
                 for (var dj = 0u; dj < 2u; dj++) {
@@ -73,8 +89,12 @@ fn eval_pair(wi: vec3<f32>, wo: vec3<f32>, base: u32) {
                     f += w * ((1.0 - np.f) * table[k] + np.f * table[k + ch]);
                 }
             }
+            // Below a smooth top, the table holds f / (Āi Āo): what enters through the top and its clear slab.
+            if params.has_top == 0u {
+                f *= entering(wi.z, eta(c), depth(c)) * entering(wo.z, eta(c), depth(c));
+            }
         }
-        out[base + c] = f;
+        out[base + c] = geo.x * fresnel_dielectric(geo.y, eta(c)) + f;
     }
 }
 
