@@ -2,8 +2,9 @@
 //! transport by Fourier-series adding-doubling (tables/adding_doubling.rs: the reference walk's boundaries and slabs,
 //! after Jakob et al. 2014) and tabulates f at (N_THETA + 1)² zenith nodes × N_PHI azimuths; evaluating it adds the
 //! top boundary's own reflection, exact, to the interpolation of the table (all light that entered the stack). Below a
-//! smooth top the table holds f divided by the top's transmittances at both nodes, and the interpolation is multiplied
-//! by the exact ones (steep near grazing angles, where they vanish). Tables are cached on disk, keyed by the stack and
+//! smooth top the table holds f divided at both nodes by what enters through the top and its clear slab (Fresnel and
+//! Beer–Lambert, steep near grazing angles, where they vanish), and the interpolation is multiplied by the exact
+//! values (`entering`). Tables are cached on disk, keyed by the stack and
 //! the options (tables::cached).
 //!
 //! | Parameter      | Type   | Default             | Description                                                    |
@@ -90,7 +91,7 @@ fn cache_name(stack: &Stack, surface: Microsurface) -> String {
     let mut h = DefaultHasher::new();
     // "diffuse": the table without the Dirac part below a smooth top (before, it blurred that part into cells);
     // "refraction": smooth refractions integrated in the outside cosine (before, at each overlap's midpoint);
-    // "transmitted": below a smooth top, f / (T̄i T̄o) (before, f).
+    // "transmitted": below a smooth top, f / (Āi Āo) (before, f).
     let grid = match anisotropic::is_anisotropic(stack, surface) {
         true => format!("anisotropic {}x{}", anisotropic::NZ, anisotropic::NA),
         false => format!("{N_THETA}x{ORDERS}x{N_PHI}"),
