@@ -4,8 +4,7 @@
 //! top boundary's own reflection, exact, to the interpolation of the table (all light that entered the stack). Below a
 //! smooth top the table holds f divided at both nodes by what enters through the top and its clear slab (Fresnel and
 //! Beer–Lambert, steep near grazing angles, where they vanish), and the interpolation is multiplied by the exact
-//! values (`entering`). Tables are cached on disk, keyed by the stack and
-//! the options (tables::cached).
+//! values (`entering`). Tables are cached on disk, keyed by the stack and the options (tables::cached).
 //!
 //! | Parameter      | Type   | Default             | Description                                                    |
 //! |----------------|--------|---------------------|----------------------------------------------------------------|
@@ -136,8 +135,8 @@ fn tabulate_stack(stack: &Stack, surface: Microsurface) -> Result<Prepared> {
     }
     let cells = Cells::new();
     let eta = stack.interfaces().swap_remove(0).eta;
-    let clear = (top.is_none() && !anisotropic)
-        .then(|| (0..stack.channels).map(|c| clear_depth(&ChannelStack::new(stack, c, surface))).collect::<Vec<_>>());
+    let channels: Vec<ChannelStack> = (0..stack.channels).map(|c| ChannelStack::new(stack, c, surface)).collect();
+    let clear = (top.is_none() && !anisotropic).then(|| channels.iter().map(clear_depth).collect::<Vec<_>>());
     // ∫ f cos θo dωo: over θo by `Cells::node_integral`, over the full circle by trapezoids over the nodes'
     // φ ∈ [0, π], twice; mean of the channels.
     let ch = stack.channels;
@@ -157,7 +156,6 @@ fn tabulate_stack(stack: &Stack, surface: Microsurface) -> Result<Prepared> {
             })
             .collect(),
     };
-    let channels = (0..ch).map(|c| ChannelStack::new(stack, c, surface)).collect();
     let (g2, stack) = (surface.g2, stack.clone());
     Ok(Prepared { table, anisotropic, clear, top, g2, eta, channels, lobes, albedo_below_top, stack, surface })
 }
@@ -622,8 +620,8 @@ fn solve<T: Real, K: PartialEq>(
 ) -> Result<Solved<T>> {
     let clip = |f: T| if f.value() > 0.0 { f } else { T::from(0.0) };
     let table = node_values(p.stack.channels, &channel, key)?.into_iter().map(clip).collect();
-    let tops = (0..p.stack.channels).map(|c| channel(c).interfaces.swap_remove(0)).collect();
-    let depths = (0..p.stack.channels).map(|c| clear_depth(&channel(c))).collect();
+    let stacks: Vec<ChannelStack<T>> = (0..p.stack.channels).map(channel).collect();
+    let (tops, depths) = stacks.iter().map(|s| (s.interfaces[0], clear_depth(s))).unzip();
     Ok(Solved { table, tops, depths })
 }
 
@@ -794,8 +792,7 @@ pub mod gpu {
         let smooth = Microfacet::new(Distribution::Ggx, 0.0, 0.0, 0.0);
         let mut values: Vec<f32> = p.eta.iter().map(|&e| e as f32).collect();
         // The clear slab's depth per channel (read where the top is smooth).
-        let depths = p.clear.clone().unwrap_or_else(|| vec![0.0; p.eta.len()]);
-        values.extend(depths.iter().map(|&d| d as f32));
+        values.extend((0..p.eta.len()).map(|c| p.clear.as_ref().map_or(0.0, |d| d[c]) as f32));
         let lobes_at = values.len();
         for mf in &p.lobes {
             let m = GpuMicrofacet::from(mf);

@@ -407,11 +407,10 @@ fn node_entering<T: Real>(cells: &Cells, s: &ChannelStack<T>) -> Vec<T> {
     }
     let shares = smooth_refraction(cells, eta);
     let beer: Vec<T> = (0..n).map(|o| cells.average(o, |mu| (-depth / mu).exp())).collect();
+    let crossing: Mat<T> = (0..n * n).map(|k| shares[k] * beer[k / n]).collect();
     let cell = |j: usize| {
-        let share = |o: usize| shares[o * n + j] * cells.w[o];
-        let (all, crossing) =
-            (0..n).fold((T::from(0.0), T::from(0.0)), |(a, c), o| (a + share(o), c + share(o) * beer[o]));
-        (T::from(1.0) - cells.fresnel_average(j, eta)) * crossing / all
+        (T::from(1.0) - cells.fresnel_average(j, eta)) * column_energy(cells, &crossing, j)
+            / column_energy(cells, &shares, j)
     };
     (0..=n).map(|k| node_cells(k, n).into_iter().map(|(j, w)| cell(j) * w).sum()).collect()
 }
