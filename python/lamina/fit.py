@@ -170,7 +170,7 @@ def fit(
     larger = noise if robust is None else np.maximum(noise, robust)
     stderr = {p.name: float(larger[i]) for i, p in enumerate(params)}
     stack = template.bind(**values)
-    f, _ = template.eval_grad(wi, wo, model, **values, **options)  # the f that was fitted (belcour: per evaluation)
+    f, _ = template.eval_grad(wi, wo, model, **values, **options)  # the f that was fitted
     theta = np.degrees(np.arccos(np.clip(wi[:, 2], -1.0, 1.0)))
     residual = {}
     for lo, hi in BANDS:

@@ -32,7 +32,8 @@ use super::common::options::{choice, flag, g2};
 use super::common::single_pass::{self, beer_lambert, refracted_up, SpInterface, SpLayer};
 use super::common::walk_lanes::{self, MAX_CHANNELS};
 use super::{
-    seeded, store, Args, Field, Gradient, InputSpec, Inputs, Model, ModelInfo, OptionSpec, Properties, Proposal, Seed,
+    seeded, store, Args, Differentiable, Field, Gradient, InputSpec, Inputs, Model, ModelInfo, OptionSpec, Properties,
+    Proposal, Seed,
 };
 use crate::bsdf;
 use crate::dual::{dir, Dual, Real};
@@ -65,6 +66,7 @@ pub const INFO: ModelInfo = ModelInfo {
     properties: Properties { reciprocal: true, energy_conserving: true, anisotropic: true, spectral: true },
     gradients: &Field::NAMES,
     prepare: |stack, args| Ok(Box::new(prepare(stack, &Options::parse(args)?)?)),
+    prepare_gradient: None,
     #[cfg(feature = "gpu")]
     gpu: Some(&gpu::HALF),
 };
@@ -435,11 +437,13 @@ impl Proposals for Lanes {
     }
 }
 
-impl Model for Prepared {
+impl Differentiable for Prepared {
     fn gradient(&self, seeds: &[Seed], n_params: usize) -> Result<Gradient<'_>> {
         super::dual_width!(n_params, gradient(self, seeds))
     }
+}
 
+impl Model for Prepared {
     fn eval_block(&self, wi: [&[f64]; 3], wo: [&[f64]; 3], _: &Inputs, out: &mut [f64]) {
         eval_rows(wi, wo, out, |_, wi, wo, o| eval(&self.layers, self.g2, self.reciprocal, wi, wo, o))
     }

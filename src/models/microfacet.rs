@@ -12,7 +12,9 @@
 
 use super::common::block::{eval_rows, simd_columns, BLOCK};
 use super::common::options::{DISTRIBUTION, FRESNEL, G2};
-use super::{Args, Field, Gradient, InputSpec, Model, ModelInfo, OptionSpec, Properties, Proposal, Seed};
+use super::{
+    Args, Differentiable, Field, Gradient, InputSpec, Model, ModelInfo, OptionSpec, Properties, Proposal, Seed,
+};
 use crate::bsdf;
 use crate::dual::{Dual, Real};
 use crate::engine::{self, Floats, Rows, V3};
@@ -43,6 +45,7 @@ pub const INFO: ModelInfo = ModelInfo {
     properties: Properties { reciprocal: true, energy_conserving: true, anisotropic: true, spectral: true },
     gradients: &["ior", "k", "roughness_x", "roughness_y", "angle", "albedo", "diffuse_roughness"],
     prepare: |stack, args| Ok(Box::new(prepare(stack, &Options::parse(args)?)?)),
+    prepare_gradient: None,
     #[cfg(feature = "gpu")]
     gpu: Some(&gpu::HALF),
 };
@@ -198,11 +201,13 @@ fn gradient<const N: usize>(p: &Prepared, seeds: &[Seed]) -> Result<Gradient<'st
     }
 }
 
-impl Model for Prepared {
+impl Differentiable for Prepared {
     fn gradient(&self, seeds: &[Seed], n_params: usize) -> Result<Gradient<'_>> {
         super::dual_width!(n_params, gradient(self, seeds))
     }
+}
 
+impl Model for Prepared {
     fn eval_block(&self, wi: [&[f64]; 3], wo: [&[f64]; 3], _: &super::Inputs, out: &mut [f64]) {
         simd_columns!(Prepared, self, wi, wo, out)
     }

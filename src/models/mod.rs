@@ -68,6 +68,9 @@ pub struct Properties {
     pub spectral: bool,
 }
 
+/// A catalogue entry's preparation for `Stack.eval_grad` alone (`ModelInfo::prepare_gradient`).
+pub type PrepareGradient = fn(&Stack, &Args) -> Result<Box<dyn Differentiable>>;
+
 /// One model of the catalogue.
 pub struct ModelInfo {
     pub name: &'static str,
@@ -79,6 +82,9 @@ pub struct ModelInfo {
     pub gradients: &'static [&'static str],
     /// The model for a stack, its options read from `Args` into the model's own options struct.
     pub prepare: fn(&Stack, &Args) -> Result<Box<dyn Model>>,
+    /// What `Stack.eval_grad` differentiates, where it needs less than `prepare` builds (tabulated: the solve in
+    /// Duals without the float64 table that `eval` reads); None: `prepare`'s model.
+    pub prepare_gradient: Option<PrepareGradient>,
     /// The model's GPU half (common/gpu.rs), if it has one.
     #[cfg(feature = "gpu")]
     pub gpu: Option<&'static common::gpu::GpuHalf>,
@@ -94,6 +100,7 @@ pub const REFERENCE: ModelInfo = ModelInfo {
     properties: Properties { reciprocal: true, energy_conserving: true, anisotropic: true, spectral: true },
     gradients: &[],
     prepare: |_, _| value_error("model 'reference' is a Monte Carlo estimator (Stack.reference), not a prepared model"),
+    prepare_gradient: None,
     #[cfg(feature = "gpu")]
     gpu: None,
 };
@@ -170,8 +177,17 @@ pub enum Proposal {
     Cosine,
 }
 
+/// What `Stack.eval_grad` asks of a prepared model: f and its parameter gradient.
+pub trait Differentiable: Send + Sync {
+    /// f and its gradient with respect to `n_params` parameters fed by `seeds` (`Gradient`), or a ValueError where the
+    /// model does not differentiate one of the seeds' fields (`ModelInfo::gradients` lists the fields it does).
+    fn gradient(&self, _seeds: &[Seed], _n_params: usize) -> Result<Gradient<'_>> {
+        value_error("this model has no parameter gradients")
+    }
+}
+
 /// A model prepared for one stack and its options.
-pub trait Model: Send + Sync {
+pub trait Model: Differentiable {
     /// f for a block of n ≤ BLOCK direction pairs given as columns (wi[c][r] is component c of row r) and the
     /// block's per-element inputs, into `out` (n rows of one value per channel, zeroed by the caller).
     fn eval_block(&self, wi: [&[f64]; 3], wo: [&[f64]; 3], inputs: &Inputs, out: &mut [f64]);
@@ -201,12 +217,6 @@ pub trait Model: Send + Sync {
     /// same u, to float32); false sends the call to the float64 sampler.
     fn sample_f32(&self, _wo: Rows, _u: Rows, _out: &mut [f32]) -> bool {
         false
-    }
-
-    /// f and its gradient with respect to `n_params` parameters fed by `seeds` (`Gradient`), or a ValueError where the
-    /// model does not differentiate one of the seeds' fields (`ModelInfo::gradients` lists the fields it does).
-    fn gradient(&self, _seeds: &[Seed], _n_params: usize) -> Result<Gradient<'_>> {
-        value_error("this model has no parameter gradients")
     }
 
     /// The model's transport_fit correction, if it has one (what the GPU applies after the model's own f).
@@ -286,6 +296,19 @@ pub fn prepare(model: &str, stack: &Stack, args: &Args) -> Result<Arc<dyn Model>
     cache.insert(0, (key(model, stack, args), prepared.clone()));
     cache.truncate(CACHED);
     Ok(prepared)
+}
+
+/// What `Stack.eval_grad` differentiates for `model`, `stack` and options: a model prepared with equal arguments by
+/// one of the last CACHED calls of `prepare`, else the entry's `prepare_gradient` (not cached: each fit step is a new
+/// stack), else `prepare`'s.
+pub fn prepare_gradient(model: &str, stack: &Stack, args: &Args) -> Result<Arc<dyn Differentiable>> {
+    if let Some(prepared) = cached(model, stack, args) {
+        return Ok(prepared);
+    }
+    match info(model)?.prepare_gradient {
+        Some(prepare_gradient) => Ok(Arc::from(prepare_gradient(stack, args)?)),
+        None => Ok(prepare(model, stack, args)?),
+    }
 }
 
 #[cfg(test)]

@@ -36,7 +36,9 @@ use super::common::single_pass::{
 };
 use super::common::walk_lanes::{self, LanePassage, LaneTransport, LaneWalk};
 use super::corrections::{interreflection, transport_fit};
-use super::{Args, Field, Gradient, InputSpec, Model, ModelInfo, OptionSpec, Properties, Proposal, Seed};
+use super::{
+    Args, Differentiable, Field, Gradient, InputSpec, Model, ModelInfo, OptionSpec, Properties, Proposal, Seed,
+};
 use crate::bsdf;
 use crate::dual::{Dir, Real};
 use crate::engine::{self, Floats, Mask, Rows, V3};
@@ -110,6 +112,7 @@ pub const INFO: ModelInfo = ModelInfo {
         let opts = Options::parse(args)?;
         transport_fit::apply(opts.transport_fit, Box::new(prepare(stack, &opts)?), stack)
     },
+    prepare_gradient: None,
     #[cfg(feature = "gpu")]
     gpu: Some(&gpu::HALF),
 };
@@ -289,11 +292,13 @@ fn gradient<'a, const N: usize>(p: &'a Prepared, seeds: &[Seed]) -> Result<Gradi
     single_pass::gradient::<N, _>("steinberg", p, &p.walk, &p.stack, Distribution::Ggx, &p.opts.walk, seeds)
 }
 
-impl Model for Prepared {
+impl Differentiable for Prepared {
     fn gradient(&self, seeds: &[Seed], n_params: usize) -> Result<Gradient<'_>> {
         super::dual_width!(n_params, gradient(self, seeds))
     }
+}
 
+impl Model for Prepared {
     fn eval_block(&self, wi: [&[f64]; 3], wo: [&[f64]; 3], _: &super::Inputs, out: &mut [f64]) {
         simd_columns!(Prepared, self, wi, wo, out)
     }

@@ -11,8 +11,9 @@
 //! | `distribution` | string | `ggx`               | microfacet distribution of every rough boundary, as the reference's |
 //! | `g2`           | string | `height_correlated` | masking-shadowing, as the reference's                          |
 //!
-//! Gradients (`Stack.eval_grad`): the adding-doubling solved again in Duals (tables/adding_doubling.rs is generic
-//! over `Real`: every projection, energy, product and solve carries the derivatives), exact for a coat's thickness,
+//! Gradients (`Stack.eval_grad`): the adding-doubling solved in Duals (tables/adding_doubling.rs is generic over
+//! `Real`: every projection, energy, product and solve carries the derivatives; a stack that `eval` has not prepared
+//! is solved in Duals alone, `prepare_gradient`, without the float64 table), exact for a coat's thickness,
 //! σa, σs and g, a smooth coat's IOR, the conductor base's η, κ and roughness and the diffuse base's albedo and σ. A
 //! rough coat's IOR and roughness by central differences of the solve at 2% of the parameter (`differenced` says
 //! why); a roughness on one axis, and a conductor's under Beckmann or the V-cavity, are refused (`refused`).
@@ -32,7 +33,9 @@ use super::common::block::{simd_columns, BLOCK};
 use super::common::mixture::defensive_mixture;
 use super::common::mixture_lanes::{self, LaneMixture, Proposals, MAX_TERMS};
 use super::common::options::{microsurface, DISTRIBUTION, G2};
-use super::{microfacet, Field, Gradient, InputSpec, Model, ModelInfo, OptionSpec, Properties, Proposal, Seed};
+use super::{
+    microfacet, Differentiable, Field, Gradient, InputSpec, Model, ModelInfo, OptionSpec, Properties, Proposal, Seed,
+};
 use crate::bsdf::rough_dielectric;
 use crate::dual::Real;
 use crate::engine::{self, per_lane, Floats, Rows, LANES, V3};
@@ -58,6 +61,7 @@ pub const INFO: ModelInfo = ModelInfo {
     properties: Properties { reciprocal: true, energy_conserving: true, anisotropic: true, spectral: true },
     gradients: &Field::NAMES,
     prepare: |stack, args| prepare(stack, microsurface(args)?),
+    prepare_gradient: Some(|stack, args| prepare_gradient(stack, microsurface(args)?)),
     #[cfg(feature = "gpu")]
     gpu: Some(&gpu::HALF),
 };
@@ -103,22 +107,39 @@ fn cache_name(stack: &Stack, surface: Microsurface) -> String {
 /// The model of `stack` with rough boundaries of `surface`: a single opaque boundary is its own top, which
 /// `microfacet` evaluates exactly, with nothing to tabulate; a layered stack is tabulated.
 pub fn prepare(stack: &Stack, surface: Microsurface) -> Result<Box<dyn Model>> {
-    if stack.layers.len() == 1 {
-        let opts =
-            microfacet::Options { distribution: surface.distribution, g2: surface.g2, fresnel: FresnelForm::Exact };
-        return Ok(Box::new(microfacet::prepare(stack, &opts)?));
+    match stack.layers.len() {
+        1 => Ok(Box::new(single(stack, surface)?)),
+        _ => Ok(Box::new(tabulate_stack(stack, surface, true)?)),
     }
-    Ok(Box::new(tabulate_stack(stack, surface)?))
 }
 
-/// The tabulated model of a layered stack.
-fn tabulate_stack(stack: &Stack, surface: Microsurface) -> Result<Prepared> {
+/// What `Stack.eval_grad` differentiates (`ModelInfo::prepare_gradient`): a layered stack without its float64 table,
+/// which the gradient's solve in Duals gives again with its derivatives.
+fn prepare_gradient(stack: &Stack, surface: Microsurface) -> Result<Box<dyn Differentiable>> {
+    match stack.layers.len() {
+        1 => Ok(Box::new(single(stack, surface)?)),
+        _ => Ok(Box::new(Unsolved(tabulate_stack(stack, surface, false)?))),
+    }
+}
+
+/// A single opaque boundary: `microfacet`'s exact model, on the same microsurface.
+fn single(stack: &Stack, surface: Microsurface) -> Result<microfacet::Prepared> {
+    let opts = microfacet::Options { distribution: surface.distribution, g2: surface.g2, fresnel: FresnelForm::Exact };
+    microfacet::prepare(stack, &opts)
+}
+
+/// The tabulated model of a layered stack; with `solved` false, without its table (and so without the sampling
+/// albedo), for `Unsolved`.
+fn tabulate_stack(stack: &Stack, surface: Microsurface, solved: bool) -> Result<Prepared> {
     let anisotropic = anisotropic::is_anisotropic(stack, surface);
-    let table = match anisotropic {
-        true => cached(&cache_name(stack, surface), anisotropic::LEN * stack.channels, || {
+    let table = match (solved, anisotropic) {
+        (false, _) => Vec::new(),
+        (true, true) => cached(&cache_name(stack, surface), anisotropic::LEN * stack.channels, || {
             anisotropic::tabulate(stack, surface)
         })?,
-        false => cached(&cache_name(stack, surface), PAIRS * N_PHI * stack.channels, || tabulate(stack, surface))?,
+        (true, false) => {
+            cached(&cache_name(stack, surface), PAIRS * N_PHI * stack.channels, || tabulate(stack, surface))?
+        }
     };
     let top = stack.layers[0].microfacet(surface.distribution).filter(|m| !m.is_smooth());
     // Sampling proposes each inner rough boundary's lobe as seen through the layers above it, at least as rough as
@@ -147,9 +168,10 @@ fn tabulate_stack(stack: &Stack, surface: Microsurface) -> Result<Prepared> {
         (0..ch).map(|c| table[k + c] as f64 * t(i, c) * t(o, c)).sum::<f64>() / ch as f64
     };
     let phi: Vec<f64> = (0..N_PHI).map(|p| 2.0 * (p as f64 / (N_PHI - 1) as f64).asin()).collect();
-    let albedo_below_top = match anisotropic {
-        true => anisotropic::albedo(&table, ch),
-        false => (0..NODES)
+    let albedo_below_top = match (solved, anisotropic) {
+        (false, _) => Vec::new(),
+        (true, true) => anisotropic::albedo(&table, ch),
+        (true, false) => (0..NODES)
             .map(|i| {
                 let over_theta = |p: usize| 2.0 * cells.node_integral(|o| value(i, o, p));
                 (0..N_PHI - 1).map(|p| 0.5 * (over_theta(p) + over_theta(p + 1)) * (phi[p + 1] - phi[p])).sum()
@@ -478,6 +500,21 @@ struct Corners {
     fp: [f64; BLOCK],
 }
 
+impl Differentiable for Prepared {
+    fn gradient(&self, seeds: &[Seed], n_params: usize) -> Result<Gradient<'_>> {
+        gradient(self, seeds, n_params)
+    }
+}
+
+/// A layered stack prepared for its gradient alone (`prepare_gradient`): its table empty.
+struct Unsolved(Prepared);
+
+impl Differentiable for Unsolved {
+    fn gradient(&self, seeds: &[Seed], n_params: usize) -> Result<Gradient<'_>> {
+        gradient(&self.0, seeds, n_params)
+    }
+}
+
 impl Model for Prepared {
     fn eval_block(&self, wi: [&[f64]; 3], wo: [&[f64]; 3], _inputs: &super::Inputs, out: &mut [f64]) {
         simd_columns!(Prepared, self, wi, wo, out)
@@ -509,10 +546,6 @@ impl Model for Prepared {
             terms.push((below, Proposal::Cosine));
         }
         defensive_mixture(terms)
-    }
-
-    fn gradient(&self, seeds: &[Seed], n_params: usize) -> Result<Gradient<'_>> {
-        gradient(self, seeds, n_params)
     }
 
     fn specular(&self, wo: DVec3, out: &mut [f64]) {
@@ -693,14 +726,22 @@ fn gradient<'a>(p: &'a Prepared, seeds: &[Seed], n: usize) -> Result<Gradient<'a
         m => Some(super::dual_width!(m, solved(p, &renumbered))?),
     };
     let differences = differences(p, &by_difference)?;
-    // Without exact parameters, f from the table `eval` reads.
-    let tops: Vec<Interface> = p.channels.iter().map(|s| s.interfaces[0]).collect();
-    let depths = p.clear.clone().unwrap_or_default();
+    // Without exact parameters, f from the table `eval` reads, or from the solve in f64 where there is none
+    // (`Unsolved`).
+    let plain = match (&solved, p.table.is_empty()) {
+        (Some(_), _) => None,
+        (None, true) => Some(solve(p, |c| ChannelStack::new(&p.stack, c, p.surface), |c| channel_key(&p.stack, c))?),
+        (None, false) => Some(Solved {
+            table: p.table.iter().map(|&f| f as f64).collect(),
+            tops: p.channels.iter().map(|s| s.interfaces[0]).collect(),
+            depths: p.clear.clone().unwrap_or_default(),
+        }),
+    };
     Ok(Box::new(move |wi, wo, out| {
         let ch = p.eta.len();
         out.fill(0.0);
-        match &solved {
-            Some(solved) => {
+        match (&solved, &plain) {
+            (Some(solved), _) => {
                 let m = exact.len();
                 let mut own = vec![0.0; ch * (m + 1)];
                 solved(wi, wo, &mut own);
@@ -711,10 +752,11 @@ fn gradient<'a>(p: &'a Prepared, seeds: &[Seed], n: usize) -> Result<Gradient<'a
                     }
                 }
             }
-            None => {
-                let f = lookup(p, |k| p.table[k] as f64, &tops, &depths, wi, wo);
+            (None, Some(s)) => {
+                let f = lookup(p, |k| s.table[k], &s.tops, &s.depths, wi, wo);
                 (0..ch).for_each(|c| out[c * (n + 1)] = f[c]);
             }
+            (None, None) => unreachable!("f comes from the Duals' solve or the plain one"),
         }
         for d in &differences {
             let [fa, fb] = d.sides.each_ref().map(|s| lookup(p, |k| s.table[k], &s.tops, &s.depths, wi, wo));
@@ -788,7 +830,7 @@ pub mod gpu {
                 "model 'tabulated' on the GPU takes isotropic stacks; evaluate anisotropic ones on the CPU (device='cpu')",
             );
         }
-        let p = tabulate_stack(stack, surface)?;
+        let p = tabulate_stack(stack, surface, true)?;
         let smooth = Microfacet::new(Distribution::Ggx, 0.0, 0.0, 0.0);
         let mut values: Vec<f32> = p.eta.iter().map(|&e| e as f32).collect();
         // The clear slab's depth per channel (read where the top is smooth).
@@ -875,7 +917,7 @@ mod tests {
     }
 
     fn model(layers: Vec<Layer>) -> Prepared {
-        tabulate_stack(&Stack::new(layers, 1.0).unwrap(), crate::models::reference_surface()).unwrap()
+        tabulate_stack(&Stack::new(layers, 1.0).unwrap(), crate::models::reference_surface(), true).unwrap()
     }
 
     fn dir(theta_deg: f64, phi_deg: f64) -> DVec3 {
@@ -1069,7 +1111,8 @@ mod tests {
                 Layer::Dielectric { alpha, .. } if alpha.0 != alpha.1 => dielectric(1.5, alpha.0, 0.0, 0.0),
                 l => l.clone(),
             });
-            let iso = tabulate_stack(&Stack::new(iso.collect(), 1.0).unwrap(), crate::models::reference_surface());
+            let iso =
+                tabulate_stack(&Stack::new(iso.collect(), 1.0).unwrap(), crate::models::reference_surface(), true);
             let (iso, surface) = (iso.unwrap(), crate::models::reference_surface());
             let table = anisotropic::tabulate(&stack, surface).unwrap();
             let both = |wi, wo| {

@@ -44,7 +44,9 @@ use super::common::single_pass::{
 };
 use super::common::walk_lanes::{self, LanePassage, LaneTransport, LaneWalk};
 use super::corrections::{interreflection, transport_fit};
-use super::{Args, Field, Gradient, InputSpec, Inputs, Model, ModelInfo, OptionSpec, Properties, Proposal, Seed};
+use super::{
+    Args, Differentiable, Field, Gradient, InputSpec, Inputs, Model, ModelInfo, OptionSpec, Properties, Proposal, Seed,
+};
 use crate::bsdf;
 use crate::dual::{normalize, plus, Dir, Real};
 use crate::engine::{self, Floats, Rows, V3};
@@ -104,6 +106,7 @@ pub const INFO: ModelInfo = ModelInfo {
         let opts = Options::parse(args, stack.channels)?;
         transport_fit::apply(opts.transport_fit, Box::new(prepare(stack, &opts)?), stack)
     },
+    prepare_gradient: None,
     #[cfg(feature = "gpu")]
     gpu: Some(&gpu::HALF),
 };
@@ -327,11 +330,13 @@ fn gradient<'a, const N: usize>(p: &'a Prepared, seeds: &[Seed]) -> Result<Gradi
     single_pass::gradient::<N, _>("weidlich_wilkie", p, &p.walk, &p.stack, p.distribution, &p.opts, seeds)
 }
 
-impl Model for Prepared {
+impl Differentiable for Prepared {
     fn gradient(&self, seeds: &[Seed], n_params: usize) -> Result<Gradient<'_>> {
         super::dual_width!(n_params, gradient(self, seeds))
     }
+}
 
+impl Model for Prepared {
     fn eval_block(&self, wi: [&[f64]; 3], wo: [&[f64]; 3], inputs: &Inputs, out: &mut [f64]) {
         let input = |j: usize| inputs.get(j).copied().flatten();
         let (flake, distance, mask) = (input(0), input(1), input(2));

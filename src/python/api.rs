@@ -446,7 +446,8 @@ pub fn eval_grad<'py>(
     n_params: usize,
     options: Option<&Bound<'py, PyDict>>,
 ) -> PyResult<Bound<'py, PyAny>> {
-    let (stack, p, _) = prepared(py, layers, ext_ior, model, options)?;
+    let stack = parse_stack(layers, ext_ior)?;
+    let (_, args) = parse_options(model, options)?;
     let seeds = seeds
         .into_iter()
         .map(|(param, layer, field, channel, scale)| {
@@ -460,7 +461,8 @@ pub fn eval_grad<'py>(
             Ok(models::Seed { param, layer, field: field.parse()?, channel: usize::try_from(channel).ok(), scale })
         })
         .collect::<crate::error::Result<Vec<_>>>()?;
-    // tabulated's gradient solves the stack again (seconds): without the GIL, where Ctrl-C stops it.
+    // tabulated's gradient solves the stack (seconds): without the GIL, where Ctrl-C stops it.
+    let p = interruptible(py, || models::prepare_gradient(model, &stack, &args))?;
     let g = interruptible(py, || p.gradient(&seeds, n_params))?;
     let dirs = [("wi", wi, Kind::Direction), ("wo", wo, Kind::Direction)];
     batch(py, &dirs, stack.channels * (n_params + 1), |r, o| g(vec3(&r[0]), vec3(&r[1]), o))

@@ -36,8 +36,9 @@
 //! Layout: `cov.rs` (covariances, roughness maps), `adding.rs` (the adding-doubling), `table.rs` (its table and
 //! the block evaluator). Sampling: each rough lobe by its GGX visible normals, weighted by its energy, and the
 //! diffuse base by the cosine; lobes of roughness 0 are Dirac (`specular`). Parameter gradients (`Stack.eval_grad`)
-//! run the same adding-doubling in Duals (src/dual.rs) per evaluation, as `interpolated=False` does: exact for
-//! that model, the FGD table's multilinear interpolant included.
+//! run the same adding-doubling in Duals (src/dual.rs): at the table's nodes, interpolated as `eval` interpolates
+//! them, or per evaluation with `interpolated=False`; exact for the model `eval` evaluates, the FGD table's
+//! multilinear interpolant included.
 
 mod adding;
 mod cov;
@@ -49,7 +50,9 @@ pub use cov::{alpha_from_variance, hg_variance, variance_from_alpha, Cov, Lobe};
 
 use super::common::options::{choice, flag, variant, G2, MICROFACET_TRANSMISSION, TRANSPORT_FIT};
 use super::corrections::transport_fit;
-use super::{Args, Field, Gradient, InputSpec, Inputs, Model, ModelInfo, OptionSpec, Properties, Proposal, Seed};
+use super::{
+    Args, Differentiable, Field, Gradient, InputSpec, Inputs, Model, ModelInfo, OptionSpec, Properties, Proposal, Seed,
+};
 use crate::bsdf;
 use crate::dual::{Dual, Real};
 use crate::engine::Rows;
@@ -60,7 +63,7 @@ use crate::stack::{Layer, Stack};
 use adding::{mean, DiffuseBase, Step};
 use glam::DVec3;
 use std::f64::consts::FRAC_1_PI;
-use table::{azimuth, LobeTable};
+use table::{azimuth, eval_table, LobeTable};
 
 pub const INFO: ModelInfo = ModelInfo {
     name: "belcour",
@@ -84,6 +87,7 @@ pub const INFO: ModelInfo = ModelInfo {
         let opts = Options::parse(args)?;
         transport_fit::apply(opts.transport_fit, Box::new(prepare(stack, &opts)?), stack)
     },
+    prepare_gradient: None,
     #[cfg(feature = "gpu")]
     gpu: Some(&gpu::HALF),
 };
@@ -205,9 +209,14 @@ fn layers<T: Real>(
     Ok((steps, diffuse))
 }
 
+/// Whether an interface of the steps is anisotropic (in Duals: or a parameter moves its two roughnesses apart).
+fn anisotropic<T: Real>(steps: &[Step<T>]) -> bool {
+    steps.iter().any(|s| matches!(s, Step::Interface { alpha, .. } if alpha.0 != alpha.1))
+}
+
 pub fn prepare(stack: &Stack, opts: &Options) -> Result<Prepared> {
     let (steps, diffuse) = layers(stack, opts, |_, _, _, v| v, false)?;
-    let anisotropic = steps.iter().any(|s| matches!(s, Step::Interface { alpha, .. } if alpha.0 != alpha.1));
+    let anisotropic = anisotropic(&steps);
     let mut p = Prepared {
         steps,
         anisotropic,
@@ -219,15 +228,15 @@ pub fn prepare(stack: &Stack, opts: &Options) -> Result<Prepared> {
         stack: stack.clone(),
     };
     if opts.interpolated {
-        let t = p.tabulate();
+        let t = LobeTable::new(&p.steps, &p.opts, p.channels, p.anisotropic);
         p.table_f32 = Some(lanes::TableF32::new(&p, &t));
         p.table = Some(t);
     }
     Ok(p)
 }
 
-/// The gradient of the adding-doubling run per evaluation (`interpolated=False`; `Model::gradient`) with respect to N
-/// parameters: f and ∂f/∂p per channel, through every step (IOR, κ, roughness, tangent angle, thickness, σa, σs, g,
+/// The gradient of the model `eval` evaluates (`Model::gradient`: its table or its adding-doubling per evaluation)
+/// with respect to N parameters: f and ∂f/∂p per channel, through every step (IOR, κ, roughness, tangent angle, thickness, σa, σs, g,
 /// the base's albedo), the FGD table's interpolant included. The reference code's TIR step and
 /// `microfacet_transmission` read tables without derivatives: they are refused (and so is `transport_fit`).
 fn gradient<const N: usize>(p: &Prepared, seeds: &[Seed]) -> Result<Gradient<'static>> {
@@ -238,9 +247,20 @@ fn gradient<const N: usize>(p: &Prepared, seeds: &[Seed]) -> Result<Gradient<'st
         |layer: usize, field: Field, channel: usize, v: f64| super::seeded::<N>(seeds, layer, field, channel, v);
     let (steps, diffuse) = layers(&p.stack, &p.opts, value, true)?;
     let opts = p.opts;
+    // With a table (interpolated=True), the gradient of the model that `eval` interpolates: the table's runs in
+    // Duals. An isotropic table holds one roughness per lobe, which a parameter of one axis would make two: then the
+    // adding-doubling per evaluation.
+    let table = p
+        .table
+        .as_ref()
+        .filter(|_| anisotropic(&steps) == p.anisotropic)
+        .map(|_| LobeTable::new(&steps, &opts, p.channels, p.anisotropic));
     Ok(Box::new(move |wi, wo, out| {
         let mut f = vec![Dual::<N>::from(0.0); out.len() / (N + 1)];
-        eval_exact(&steps, diffuse.as_ref(), &opts, wi, wo, &mut f);
+        match &table {
+            Some(t) => eval_table(t, diffuse.as_ref(), &opts, wi, wo, &mut f),
+            None => eval_exact(&steps, diffuse.as_ref(), &opts, wi, wo, &mut f),
+        }
         f.into_iter().enumerate().for_each(|(c, x)| super::store(out, c, x));
     }))
 }
@@ -298,6 +318,12 @@ fn add_diffuse<T: Real>(d: Option<&DiffuseBase<T>>, down: impl Fn(usize) -> T, u
     }
 }
 
+impl Differentiable for Prepared {
+    fn gradient(&self, seeds: &[Seed], n_params: usize) -> Result<Gradient<'_>> {
+        super::dual_width!(n_params, gradient(self, seeds))
+    }
+}
+
 impl Model for Prepared {
     fn eval_block(&self, wi: [&[f64]; 3], wo: [&[f64]; 3], _: &Inputs, out: &mut [f64]) {
         super::common::block::simd_columns!(Prepared, self, wi, wo, out)
@@ -311,14 +337,13 @@ impl Model for Prepared {
         lanes::sample(self, wo, u, out)
     }
 
-    fn gradient(&self, seeds: &[Seed], n_params: usize) -> Result<Gradient<'_>> {
-        super::dual_width!(n_params, gradient(self, seeds))
-    }
-
     fn proposals(&self, wo: DVec3) -> Vec<(f64, Proposal)> {
         // Each lobe's energy and roughness, and T↑ for the diffuse base: from the table when there is one.
         let (lobes, t_up) = match &self.table {
-            Some(t) => Prepared::table_lobes(t, wo),
+            Some(t) => {
+                let c = t.corner_of(wo.z, wo);
+                (t.lobes_at(&c), t.energy_at(&t.t_up, &c))
+            }
             None => {
                 let (cos_phi, sin_phi) = azimuth(wo);
                 let (lobes, view) = self.adding(wo.z, cos_phi, sin_phi);

@@ -1,8 +1,10 @@
 //! The adding-doubling tabulated over the viewing direction, and the block evaluator that interpolates it.
 
+use super::adding::{self, DiffuseBase, Step};
 use super::cov::Cov;
-use super::{symmetric_cosine, Prepared};
+use super::{add_diffuse, add_lobe, symmetric_cosine, Options, Prepared};
 use crate::bsdf;
+use crate::dual::Real;
 use crate::models::common::block::{eval_rows, BLOCK};
 use crate::optics::distribution::{Distribution, G2Form, Microfacet};
 use crate::tables;
@@ -19,7 +21,7 @@ pub(super) const TABLE_NODES: usize = 512;
 pub(super) const ANISO_NODES: usize = 128;
 pub(super) const ANISO_AZIMUTHS: usize = 32;
 
-pub(super) struct LobeTable {
+pub(super) struct LobeTable<T = f64> {
     pub(super) lobes: usize,
     pub(super) nodes: usize,
     pub(super) azimuths: usize,
@@ -27,14 +29,17 @@ pub(super) struct LobeTable {
     /// yy; anisotropic stacks), then the energy per channel. No h⁻¹ is evaluated per evaluation.
     pub(super) width: usize,
     /// [node][azimuth][lobe][width]: each run's record is contiguous, so that interpolation reads whole records.
-    pub(super) record: Vec<f64>,
+    pub(super) record: Vec<T>,
     /// [node][azimuth][channel]: energy transmitted down to the base (T0i) and up from it (Ti0).
-    pub(super) t_down: Vec<f64>,
-    pub(super) t_up: Vec<f64>,
+    pub(super) t_down: Vec<T>,
+    pub(super) t_up: Vec<T>,
 }
 
-/// A lobe as sampling sees it: GGX (αx, αy, tangent angle) and energy per channel.
-pub(super) type GgxLobe = ((f64, f64, f64), Vec<f64>);
+/// A lobe as sampling and the gradient see it: GGX (αx, αy, tangent angle) and energy per channel.
+pub(super) type GgxLobe<T = f64> = ((T, T, T), Vec<T>);
+
+/// The table corners of one direction: run index and bilinear weight of each of the four.
+pub(super) type Corner = [(i32, f64); 4];
 
 /// Table corners of up to BLOCK rows: run index and bilinear weight of each of the four corners, per row.
 pub(super) struct Corners {
@@ -42,51 +47,29 @@ pub(super) struct Corners {
     pub(super) weight: [[f64; BLOCK]; 4],
 }
 
-impl Prepared {
-    /// The lobes and the energy transmitted up (T↑, per channel) at the viewing direction wo, interpolated from the
-    /// table as the block evaluator does: per lobe its GGX roughness (αx, αy, tangent angle) and energies.
-    pub(super) fn table_lobes(t: &LobeTable, wo: DVec3) -> (Vec<GgxLobe>, Vec<f64>) {
-        let c = Self::corners(t, &[wo.z], &[wo.x], &[wo.y]);
-        let at = |values: &[f64], width: usize, offset: usize, i: usize| {
-            (0..4).map(|q| c.weight[q][0] * values[c.index[q][0] as usize * width + offset + i]).sum::<f64>()
-        };
-        let w = t.lobes * t.width;
-        let channels = t.t_up.len() / (t.nodes * t.azimuths);
-        let lobes = (0..t.lobes)
-            .map(|j| {
-                let value = |i: usize| at(&t.record, w, j * t.width, i);
-                let (alpha, first) = if t.azimuths > 1 {
-                    let (ax, ay, cos, sin) = Cov { xx: value(0), xy: value(1), yy: value(2) }.eigen_frame();
-                    ((ax, ay, sin.atan2(cos)), 3)
-                } else {
-                    ((value(0), value(0), 0.0), 1)
-                };
-                (alpha, (first..t.width).map(value).collect())
-            })
-            .collect();
-        (lobes, (0..channels).map(|ch| at(&t.t_up, channels, 0, ch)).collect())
-    }
-
-    pub(super) fn tabulate(&self) -> LobeTable {
-        let c = self.channels;
-        let (nodes, azimuths) = if self.anisotropic { (ANISO_NODES, ANISO_AZIMUTHS) } else { (TABLE_NODES, 1) };
+impl<T: Real> LobeTable<T> {
+    /// The adding-doubling of `steps` run at every node, in f64 (`eval`'s table) or in Duals (the gradient of the
+    /// model that table interpolates).
+    pub(super) fn new(steps: &[Step<T>], opts: &Options, channels: usize, anisotropic: bool) -> Self {
+        let c = channels;
+        let (nodes, azimuths) = if anisotropic { (ANISO_NODES, ANISO_AZIMUTHS) } else { (TABLE_NODES, 1) };
         let runs: Vec<_> = (0..nodes * azimuths)
             .into_par_iter()
             .map(|k| {
                 let mu = ((k / azimuths) as f64 / (nodes - 1) as f64).powi(2);
                 let p = std::f64::consts::PI * (k % azimuths) as f64 / azimuths as f64;
                 let (cos, sin) = direction_of_pseudo_angle(p);
-                self.adding(mu, cos, sin)
+                adding::adding(steps, opts, c, T::from(mu), cos, sin)
             })
             .collect();
         let lobes = runs.iter().map(|(l, _)| l.len()).max().unwrap_or(0);
-        let width = if self.anisotropic { 3 } else { 1 } + c;
+        let width = if anisotropic { 3 } else { 1 } + c;
         let mut t = LobeTable {
             lobes,
             nodes,
             azimuths,
             width,
-            record: vec![0.0; runs.len() * lobes * width],
+            record: vec![T::from(0.0); runs.len() * lobes * width],
             t_down: Vec::with_capacity(runs.len() * c),
             t_up: Vec::with_capacity(runs.len() * c),
         };
@@ -94,7 +77,7 @@ impl Prepared {
             for (j, lobe) in l.iter().enumerate() {
                 let v = &mut t.record[(k * lobes + j) * width..][..width];
                 let m = lobe.cov.alpha_matrix();
-                let alpha: &[f64] = if self.anisotropic { &[m.xx, m.xy, m.yy] } else { &[lobe.roughness().0] };
+                let alpha: &[T] = if anisotropic { &[m.xx, m.xy, m.yy] } else { &[lobe.roughness().0] };
                 v[..alpha.len()].copy_from_slice(alpha);
                 v[alpha.len()..].copy_from_slice(&lobe.energy);
             }
@@ -104,12 +87,60 @@ impl Prepared {
         t
     }
 
+    /// The lobes at the corners `c` (`corner_of` the viewing direction, at cos θo or |wo·h| with `symmetric`),
+    /// interpolated as the block evaluator does: per lobe its GGX roughness (αx, αy, tangent angle) and energies.
+    pub(super) fn lobes_at(&self, c: &Corner) -> Vec<GgxLobe<T>> {
+        let w = self.lobes * self.width;
+        (0..self.lobes)
+            .map(|j| {
+                let value = |i: usize| interpolate(c, &self.record, w, j * self.width + i);
+                let (alpha, first) = if self.azimuths > 1 {
+                    let (ax, ay, cos, sin) = Cov { xx: value(0), xy: value(1), yy: value(2) }.eigen_frame();
+                    ((ax, ay, sin.atan2(cos)), 3)
+                } else {
+                    ((value(0), value(0), T::from(0.0)), 1)
+                };
+                (alpha, (first..self.width).map(value).collect())
+            })
+            .collect()
+    }
+
+    /// The energy transmitted down to the base (`t_down`) or up from it (`t_up`) per channel at the corners `c`.
+    pub(super) fn energy_at(&self, values: &[T], c: &Corner) -> Vec<T> {
+        let channels = values.len() / (self.nodes * self.azimuths);
+        (0..channels).map(|ch| interpolate(c, values, channels, ch)).collect()
+    }
+
+    /// The corners of the direction w looked up at the cosine `cos_theta` (see `corners`).
+    pub(super) fn corner_of(&self, cos_theta: f64, w: DVec3) -> Corner {
+        let v = if self.azimuths > 1 { pseudo_angle(w.x, w.y) * (FRAC_1_PI * self.azimuths as f64) } else { 0.0 };
+        self.corner(cos_theta, v)
+    }
+
+    /// The corners of one direction: its cosine θ to look up, and its `pseudo_angle` in units of the azimuths'
+    /// spacing `v`.
+    #[inline(always)]
+    fn corner(&self, cos_theta: f64, v: f64) -> Corner {
+        let azimuths = self.azimuths as i32;
+        let (k, fk) = tables::node(cos_theta.clamp(0.0, 1.0).sqrt(), self.nodes);
+        let k = k as i32;
+        let a = (v as i32).min(azimuths - 1);
+        let fa = v - a as f64;
+        let b = if a + 1 == azimuths { 0 } else { a + 1 };
+        [
+            (k * azimuths + a, (1.0 - fk) * (1.0 - fa)),
+            ((k + 1) * azimuths + a, fk * (1.0 - fa)),
+            (k * azimuths + b, (1.0 - fk) * fa),
+            ((k + 1) * azimuths + b, fk * fa),
+        ]
+    }
+
     /// Bilinear interpolation corners of directions (columns x, y, and the cosine θ to look up) in the table: linear
     /// in √cos θ and in the azimuth's `pseudo_angle` (period π); isotropic tables use the first two corners only.
     #[inline(always)]
-    fn corners(t: &LobeTable, cos_theta: &[f64], x: &[f64], y: &[f64]) -> Corners {
+    fn corners(&self, cos_theta: &[f64], x: &[f64], y: &[f64]) -> Corners {
         let mut c = Corners { index: [[0; BLOCK]; 4], weight: [[0.0; BLOCK]; 4] };
-        let (n, azimuths) = (cos_theta.len(), t.azimuths as i32);
+        let (n, azimuths) = (cos_theta.len(), self.azimuths);
         // Each pass a loop of its own, so that it vectorizes (positions as i32: AVX2 converts f64 to i32 only).
         let mut v = [0.0; BLOCK];
         if azimuths > 1 {
@@ -118,17 +149,41 @@ impl Prepared {
             }
         }
         for r in 0..n {
-            let (k, fk) = tables::node(cos_theta[r].clamp(0.0, 1.0).sqrt(), t.nodes);
-            let k = k as i32;
-            let a = (v[r] as i32).min(azimuths - 1);
-            let fa = v[r] - a as f64;
-            let b = if a + 1 == azimuths { 0 } else { a + 1 };
-            (c.index[0][r], c.weight[0][r]) = (k * azimuths + a, (1.0 - fk) * (1.0 - fa));
-            (c.index[1][r], c.weight[1][r]) = ((k + 1) * azimuths + a, fk * (1.0 - fa));
-            (c.index[2][r], c.weight[2][r]) = (k * azimuths + b, (1.0 - fk) * fa);
-            (c.index[3][r], c.weight[3][r]) = ((k + 1) * azimuths + b, fk * fa);
+            for (q, (index, weight)) in self.corner(cos_theta[r], v[r]).into_iter().enumerate() {
+                (c.index[q][r], c.weight[q][r]) = (index, weight);
+            }
         }
         c
+    }
+}
+
+/// Value `i` of `values` (records of `width`) interpolated at the corners `c`.
+#[inline(always)]
+fn interpolate<T: Real>(c: &Corner, values: &[T], width: usize, i: usize) -> T {
+    c.iter().fold(T::from(0.0), |sum, &(k, w)| sum + values[k as usize * width + i] * w)
+}
+
+/// f at (wi, wo) from the table `t`, as `eval_columns` interpolates it, row by row: in Duals, the gradient of the
+/// interpolated model.
+pub(super) fn eval_table<T: Real>(
+    t: &LobeTable<T>,
+    diffuse: Option<&DiffuseBase<T>>,
+    opts: &Options,
+    wi: DVec3,
+    wo: DVec3,
+    out: &mut [T],
+) {
+    out.fill(T::from(0.0));
+    if wi.z <= 0.0 || wo.z <= 0.0 {
+        return;
+    }
+    let cos_theta = if opts.symmetric { symmetric_cosine(wi, wo) } else { wo.z };
+    for (alpha, energy) in t.lobes_at(&t.corner_of(cos_theta, wo)) {
+        add_lobe(opts.g2, alpha, &energy, wi, wo, out);
+    }
+    if diffuse.is_some() {
+        let (down, up) = (t.energy_at(&t.t_down, &t.corner_of(wi.z, wi)), t.energy_at(&t.t_up, &t.corner_of(wo.z, wo)));
+        add_diffuse(diffuse, |ch| down[ch], |ch| up[ch], out);
     }
 }
 
@@ -156,7 +211,7 @@ impl Prepared {
             };
         }
         let (above, anisotropic) = (&above[..n], t.azimuths > 1);
-        let corners = Self::corners(t, &cos_theta[..n], ox, oy);
+        let corners = t.corners(&cos_theta[..n], ox, oy);
         let ([mut ax, mut ay, mut cos, mut sin], mut shape) = ([[0.0; BLOCK]; 4], [0.0; BLOCK]);
         if anisotropic {
             // Per row, the records of all lobes interpolated at once (contiguous reads of the four corners).
@@ -205,8 +260,8 @@ impl Prepared {
         }
         if self.diffuse.is_some() {
             // T↓ at θi and T↑ at θo: the lobes' corners serve for wo unless they were found at |wo·h|.
-            let down_at = Self::corners(t, iz, ix, iy);
-            let up_symmetric = self.opts.symmetric.then(|| Self::corners(t, oz, ox, oy));
+            let down_at = t.corners(iz, ix, iy);
+            let up_symmetric = self.opts.symmetric.then(|| t.corners(oz, ox, oy));
             let up_at = up_symmetric.as_ref().unwrap_or(&corners);
             for (r, o) in out.chunks_exact_mut(c).enumerate().filter(|&(r, _)| above[r]) {
                 let at = |corners: &Corners, table: &[f64], ch: usize| {

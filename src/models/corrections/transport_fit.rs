@@ -19,7 +19,7 @@ use crate::error::{value_error, Result};
 use crate::models::common::block::simd_columns;
 use crate::models::common::mixture::DEFENSIVE;
 use crate::models::tabulated::{self, zenith, zenith_node_lanes};
-use crate::models::{Inputs, Model, Proposal, BLOCK};
+use crate::models::{Differentiable, Gradient, Inputs, Model, Proposal, Seed, BLOCK};
 use crate::stack::Stack;
 use crate::tables::adding_doubling::{Cells, NODES, N_THETA};
 use crate::tables::node;
@@ -218,6 +218,15 @@ fn gather(fit: &[f32], at: &[usize; LANES], k: usize) -> Floats {
     Floats(per_lane(|l| unsafe { *fit.get_unchecked(at[l] + k) }))
 }
 
+impl Differentiable for TransportFit {
+    fn gradient(&self, _: &[Seed], _: usize) -> Result<Gradient<'_>> {
+        value_error(
+            "transport_fit (the improved variants) has no parameter gradients: its fit is made for the stack as \
+             prepared; pass transport_fit=False (or variant='published')",
+        )
+    }
+}
+
 impl Model for TransportFit {
     fn eval_block(&self, wi: [&[f64]; 3], wo: [&[f64]; 3], inputs: &Inputs, out: &mut [f64]) {
         self.model.eval_block(wi, wo, inputs, out);
@@ -244,13 +253,6 @@ impl Model for TransportFit {
 
     fn transport_fit(&self) -> Option<&TransportFit> {
         Some(self)
-    }
-
-    fn gradient(&self, _: &[super::super::Seed], _: usize) -> Result<super::super::Gradient<'_>> {
-        value_error(
-            "transport_fit (the improved variants) has no parameter gradients: its fit is made for the stack as \
-             prepared; pass transport_fit=False (or variant='published')",
-        )
     }
 
     fn check_inputs(&self, given: &[bool]) -> Result<()> {
