@@ -125,9 +125,9 @@ impl Prepared {
     }
 }
 
-/// The gradient of `Prepared::eval` with respect to N parameters (`Model::gradient`), f and ∂f/∂p per channel in
-/// Duals: a rough conductor's η, κ (exact Fresnel), αx, αy and frame angle; a diffuse base's albedo and Oren–Nayar σ;
-/// a smooth coat's η (F̄_int's quadrature included) and the albedo beneath it.
+/// The gradient of `Prepared::eval` with respect to N parameters (`Differentiable::gradient`), f and ∂f/∂p per channel
+/// in Duals: a rough conductor's η, κ (exact Fresnel), αx, αy and frame angle; a diffuse base's albedo and Oren–Nayar
+/// σ; a smooth coat's η (F̄_int's quadrature included) and the albedo beneath it.
 fn gradient<const N: usize>(p: &Prepared, seeds: &[Seed]) -> Result<Gradient<'static>> {
     let dual_at =
         |layer: usize, field: Field, channel: usize, v: f64| super::seeded::<N>(seeds, layer, field, channel, v);

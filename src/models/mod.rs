@@ -78,7 +78,8 @@ pub struct ModelInfo {
     pub options: &'static [OptionSpec],
     pub inputs: &'static [InputSpec],
     pub properties: Properties,
-    /// The layer fields (`Field::NAMES`) whose gradients `Model::gradient` returns, exact (forward-mode, src/dual.rs).
+    /// The layer fields (`Field::NAMES`) whose gradients `Differentiable::gradient` returns, exact (forward-mode,
+    /// src/dual.rs).
     pub gradients: &'static [&'static str],
     /// The model for a stack, its options read from `Args` into the model's own options struct.
     pub prepare: fn(&Stack, &Args) -> Result<Box<dyn Model>>,

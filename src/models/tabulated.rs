@@ -703,8 +703,8 @@ fn differences(p: &Prepared, seeds: &[Seed]) -> Result<Vec<Difference>> {
         .collect()
 }
 
-/// f and its gradient (`Model::gradient`): exact (`solved`) by every field but a rough coat's IOR and roughness,
-/// whose derivatives are central differences of the solve (`differenced`, `differences`).
+/// f and its gradient (`Differentiable::gradient`): exact (`solved`) by every field but a rough coat's IOR and
+/// roughness, whose derivatives are central differences of the solve (`differenced`, `differences`).
 fn gradient<'a>(p: &'a Prepared, seeds: &[Seed], n: usize) -> Result<Gradient<'a>> {
     if let Some(why) = refused(&p.stack, p.surface, seeds) {
         return value_error(format!("model 'tabulated' has no gradient by {why}"));

@@ -429,8 +429,8 @@ pub fn pdf<'py>(
     batch(py, &dirs, 1, |r, o| o[0] = mixture::pdf(&*p, vec3(&r[0]), vec3(&r[1])))
 }
 
-/// f and its gradient with respect to layer parameters (Model::gradient): (..., channels × (1 + n_params)), per
-/// channel f and then ∂f/∂p of each parameter. `seeds`: (parameter, layer, field, channel or −1 for every channel,
+/// f and its gradient with respect to layer parameters (Differentiable::gradient): (..., channels × (1 + n_params)),
+/// per channel f and then ∂f/∂p of each parameter. `seeds`: (parameter, layer, field, channel or −1 for every channel,
 /// scale) tuples (models::Seed).
 #[pyfunction]
 #[pyo3(signature = (layers, ext_ior, model, wi, wo, seeds, n_params, options=None))]

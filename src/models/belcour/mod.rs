@@ -235,10 +235,10 @@ pub fn prepare(stack: &Stack, opts: &Options) -> Result<Prepared> {
     Ok(p)
 }
 
-/// The gradient of the model `eval` evaluates (`Model::gradient`: its table or its adding-doubling per evaluation)
-/// with respect to N parameters: f and ∂f/∂p per channel, through every step (IOR, κ, roughness, tangent angle, thickness, σa, σs, g,
-/// the base's albedo), the FGD table's interpolant included. The reference code's TIR step and
-/// `microfacet_transmission` read tables without derivatives: they are refused (and so is `transport_fit`).
+/// The gradient of the model `eval` evaluates (`Differentiable::gradient`: its table, or its adding-doubling per
+/// evaluation) with respect to N parameters: f and ∂f/∂p per channel, through every step (IOR, κ, roughness, tangent
+/// angle, thickness, σa, σs, g, the base's albedo), the FGD table's interpolant included. The reference code's TIR
+/// step and `microfacet_transmission` read tables without derivatives: they are refused (and so is `transport_fit`).
 fn gradient<const N: usize>(p: &Prepared, seeds: &[Seed]) -> Result<Gradient<'static>> {
     if p.opts.tir != Tir::Off || p.opts.microfacet_transmission {
         return value_error("gradients of model 'belcour' take tir='off' and microfacet_transmission=False");

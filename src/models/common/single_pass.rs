@@ -170,8 +170,8 @@ pub fn layers_with<T: Real>(
     out
 }
 
-/// The gradient (`Model::gradient`) of model `name`'s walk with respect to N parameters: the stack's layers in Duals
-/// seeded by `seeds` (`layers_with`), walked by `Walk::eval_real` with the model's passages in Duals. Exact for
+/// The gradient (`Differentiable::gradient`) of model `name`'s walk with respect to N parameters: the stack's layers in
+/// Duals seeded by `seeds` (`layers_with`), walked by `Walk::eval_real` with the model's passages in Duals. Exact for
 /// every field (the HG asymmetry g, which a single pass does not use, has gradient 0); Fresnel forms other than the
 /// exact one and lamina's inter-reflection corrections are refused.
 pub fn gradient<'a, const N: usize, M: RealTransport + Sync>(
