@@ -43,6 +43,11 @@ pub trait Real:
     fn atan2(self, x: Self) -> Self;
     /// Whether two numbers are the same, derivatives included.
     fn same(self, o: Self) -> bool;
+    /// How many derivatives the number carries: 0 for f64.
+    const DERIVATIVES: usize;
+    /// g(x₁, …, x_K) from its value and partials ∂g/∂x_k (a Dual<K> computed in f64), with the derivatives of the
+    /// x's own carried through by the chain rule; for f64, the value.
+    fn compose<const K: usize>(g: Dual<K>, x: [Self; K]) -> Self;
 }
 
 impl Real for f64 {
@@ -97,6 +102,11 @@ impl Real for f64 {
     #[inline(always)]
     fn same(self, o: f64) -> bool {
         self == o
+    }
+    const DERIVATIVES: usize = 0;
+    #[inline(always)]
+    fn compose<const K: usize>(g: Dual<K>, _: [f64; K]) -> f64 {
+        g.v
     }
 }
 
@@ -325,6 +335,11 @@ impl<const N: usize> Real for Dual<N> {
     }
     fn same(self, o: Self) -> bool {
         self == o
+    }
+    const DERIVATIVES: usize = N;
+    #[inline(always)]
+    fn compose<const K: usize>(g: Dual<K>, x: [Self; K]) -> Self {
+        Dual { v: g.v, d: std::array::from_fn(|i| (0..K).map(|k| g.d[k] * x[k].d[i]).sum()) }
     }
 }
 

@@ -83,6 +83,13 @@ def test_a_rough_conductor_s_gradients_are_its_central_differences(rng):
         )
         grad = _check(template, values, wi, wo)
         assert np.all(grad[..., 1, 1:3] == 0.0)  # κ of the green channel is not a parameter
+    # Below the horizon, and on a smooth conductor (a Dirac lobe, `specular`), f is 0 and so is its gradient.
+    below = wi * np.array([1.0, 1.0, -1.0])
+    f, grad = template.eval_grad(np.concatenate([below, wi]), np.concatenate([wo, below]), **values)
+    assert np.all(f == 0.0) and np.all(grad == 0.0)
+    smooth = Stack([Conductor(Param("eta", 0.1, 3.0), 3.0, roughness=Param("a", 0.0, 1.0))])
+    f, grad = smooth.eval_grad(wi, wo, eta=0.5, a=0.0)
+    assert np.all(f == 0.0) and np.all(grad == 0.0)
     assert set(models()[0].gradients) >= {"ior", "k", "roughness_x", "roughness_y", "angle", "albedo"}
     assert {m.name for m in models() if m.gradients} == {
         "microfacet",

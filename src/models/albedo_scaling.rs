@@ -32,8 +32,8 @@ use super::common::options::{choice, flag, g2};
 use super::common::single_pass::{self, beer_lambert, refracted_up, SpInterface, SpLayer};
 use super::common::walk_lanes::{self, MAX_CHANNELS};
 use super::{
-    seeded, store, Args, Differentiable, Field, Gradient, InputSpec, Inputs, Model, ModelInfo, OptionSpec, Properties,
-    Proposal, Seed,
+    per_pair, seeded, store, Args, Differentiable, Field, Gradient, InputSpec, Inputs, Model, ModelInfo, OptionSpec,
+    Properties, Proposal, Seed,
 };
 use crate::bsdf;
 use crate::dual::{dir, Dual, Real};
@@ -143,7 +143,7 @@ fn gradient<'a, const N: usize>(p: &'a Prepared, seeds: &[Seed]) -> Result<Gradi
     if p.roughening {
         roughen(&mut layers);
     }
-    Ok(Box::new(move |wi, wo, out| {
+    Ok(per_pair(move |wi, wo, out| {
         let mut f = vec![Dual::<N>::from(0.0); p.channels];
         eval(&layers, p.g2, p.reciprocal, wi, wo, &mut f);
         f.into_iter().enumerate().for_each(|(c, x)| store(out, c, x));

@@ -10,10 +10,11 @@
 //! Sampling: the conductor's visible normals (Heitz 2018); the diffuse forms by the cosine. A smooth conductor or
 //! the smooth coat's reflection are Dirac lobes (`specular`).
 
-use super::common::block::{eval_rows, simd_columns, BLOCK};
+use super::common::block::{eval_rows, row, simd_columns, BLOCK};
 use super::common::options::{DISTRIBUTION, FRESNEL, G2};
 use super::{
-    Args, Differentiable, Field, Gradient, InputSpec, Model, ModelInfo, OptionSpec, Properties, Proposal, Seed,
+    per_pair, Args, Differentiable, Field, Gradient, InputSpec, Model, ModelInfo, OptionSpec, Properties, Proposal,
+    Seed,
 };
 use crate::bsdf;
 use crate::dual::{Dual, Real};
@@ -156,23 +157,34 @@ fn gradient<const N: usize>(p: &Prepared, seeds: &[Seed]) -> Result<Gradient<'st
             let eta: Vec<Dual<N>> = eta.iter().enumerate().map(|(c, &e)| dual(Field::Ior, c, e)).collect();
             let k: Vec<Dual<N>> = k.iter().enumerate().map(|(c, &x)| dual(Field::K, c, x)).collect();
             Ok(Box::new(move |wi, wo, out| {
-                out.fill(0.0);
-                // A smooth conductor's reflection is a Dirac lobe, not part of f.
-                if wi.z <= 0.0 || wo.z <= 0.0 || smooth {
-                    return;
+                // A smooth conductor's reflection is a Dirac lobe, not part of f (`mfd` holds the clamped roughness).
+                if smooth {
+                    return out.fill(0.0);
                 }
-                if let Some((geo, cos_h)) = bsdf::reflection_geometry(&mfd, g2, wi, wo) {
-                    for c in 0..eta.len() {
-                        super::store(out, c, geo * fresnel::conductor(cos_h, eta[c], k[c]));
+                #[cfg(target_arch = "x86_64")]
+                if engine::has_avx2() {
+                    #[target_feature(enable = "avx2,fma")]
+                    unsafe fn avx2<const N: usize>(
+                        mf: &Microfacet<Dual<N>>,
+                        g2: G2Form,
+                        ior: [&[Dual<N>]; 2],
+                        wi: [&[f64]; 3],
+                        wo: [&[f64]; 3],
+                        out: &mut [f64],
+                    ) {
+                        conductor_gradient(mf, g2, ior, wi, wo, out)
                     }
+                    // SAFETY: the CPU supports every feature the function is compiled for.
+                    return unsafe { avx2(&mfd, g2, [&eta, &k], wi, wo, out) };
                 }
+                conductor_gradient(&mfd, g2, [&eta, &k], wi, wo, out)
             }))
         }
         Prepared::Diffuse { albedo, sigma } => {
             takes(&[Field::Albedo, Field::DiffuseRoughness], "a diffuse base: albedo and diffuse_roughness")?;
             let sigma = dual(Field::DiffuseRoughness, 0, *sigma);
             let albedo: Vec<Dual<N>> = albedo.iter().enumerate().map(|(c, &a)| dual(Field::Albedo, c, a)).collect();
-            Ok(Box::new(move |wi, wo, out| {
+            Ok(per_pair(move |wi, wo, out| {
                 let shape = diffuse::oren_nayar_shape(sigma, wi, wo);
                 for (c, &a) in albedo.iter().enumerate() {
                     super::store(out, c, a * shape);
@@ -188,7 +200,7 @@ fn gradient<const N: usize>(p: &Prepared, seeds: &[Seed]) -> Result<Gradient<'st
             let albedo: Vec<Dual<N>> =
                 albedo.iter().enumerate().map(|(c, &a)| dual_at(1, Field::Albedo, c, a)).collect();
             let f_int: Vec<Dual<N>> = eta.iter().map(|&e| fresnel::diffuse_reflectance(Dual::from(1.0) / e)).collect();
-            Ok(Box::new(move |wi, wo, out| {
+            Ok(per_pair(move |wi, wo, out| {
                 out.fill(0.0);
                 if wi.z <= 0.0 || wo.z <= 0.0 {
                     return;
@@ -197,6 +209,41 @@ fn gradient<const N: usize>(p: &Prepared, seeds: &[Seed]) -> Result<Gradient<'st
                     super::store(out, c, smooth_coat_lambert(albedo[c], eta[c], f_int[c], wi.z, wo.z));
                 }
             }))
+        }
+    }
+}
+
+/// A rough conductor's f and gradient over a block (`Gradient`): the geometry D G2 / (4 cos θi cos θo) per row in
+/// Duals (αx, αy, angle), then per channel the exact Fresnel F(cos θh; η, κ) with its partials ∂F/∂η and ∂F/∂κ in a
+/// Dual<2>, a loop over the rows that vectorizes, chained to the N parameters through η's and κ's own derivatives.
+#[inline(always)]
+fn conductor_gradient<const N: usize>(
+    mf: &Microfacet<Dual<N>>,
+    g2: G2Form,
+    [eta, k]: [&[Dual<N>]; 2],
+    wi: [&[f64]; 3],
+    wo: [&[f64]; 3],
+    out: &mut [f64],
+) {
+    let n = wi[0].len();
+    let (mut geo, mut cos_h) = ([Dual::<N>::from(0.0); BLOCK], [0.0; BLOCK]);
+    for r in 0..n {
+        let above = wi[2][r] > 0.0 && wo[2][r] > 0.0;
+        let (g, c) = bsdf::reflection_geometry(mf, g2, row(wi, r), row(wo, r)).unwrap_or((Dual::from(0.0), 1.0));
+        (geo[r], cos_h[r]) = (if above { g } else { Dual::from(0.0) }, c);
+    }
+    let width = out.len() / n;
+    let mut f = [[0.0; 3]; BLOCK];
+    for c in 0..eta.len() {
+        let (e, x) = (Dual { v: eta[c].v, d: [1.0, 0.0] }, Dual { v: k[c].v, d: [0.0, 1.0] });
+        for r in 0..n {
+            let fr = fresnel::conductor(cos_h[r], e, x);
+            f[r] = [fr.v, fr.d[0], fr.d[1]];
+        }
+        for (r, o) in out.chunks_exact_mut(width).enumerate() {
+            let [v, d_eta, d_k] = f[r];
+            let fresnel = Dual { v, d: std::array::from_fn(|i| d_eta * eta[c].d[i] + d_k * k[c].d[i]) };
+            super::store(o, c, geo[r] * fresnel);
         }
     }
 }

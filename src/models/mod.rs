@@ -167,8 +167,14 @@ macro_rules! dual_width {
 }
 pub(crate) use dual_width;
 
-/// f and its parameter gradient at a direction pair (wi, wo): per channel, f and then ∂f/∂p of each parameter.
-pub type Gradient<'a> = Box<dyn Fn(DVec3, DVec3, &mut [f64]) + Send + Sync + 'a>;
+/// f and its parameter gradient over a block of direction pairs given as columns (wi, wo: x, y and z), one output row
+/// per pair: per channel, f and then ∂f/∂p of each parameter.
+pub type Gradient<'a> = Box<dyn Fn([&[f64]; 3], [&[f64]; 3], &mut [f64]) + Send + Sync + 'a>;
+
+/// A `Gradient` of a function of one pair (wi, wo), evaluated row by row.
+pub fn per_pair<'a>(g: impl Fn(DVec3, DVec3, &mut [f64]) + Send + Sync + 'a) -> Gradient<'a> {
+    Box::new(move |wi, wo, out| common::block::eval_rows(wi, wo, out, |_, wi, wo, o| g(wi, wo, o)))
+}
 
 /// A lobe of the sampling mixture of a model: a GGX/Beckmann reflection lobe sampled by its visible normals, or the
 /// cosine-weighted hemisphere (diffuse terms).

@@ -29,12 +29,13 @@
 //! smooth interface or a polished metal) are Dirac lobes that cells would blur: the table leaves them out and
 //! `specular` adds them exactly, with the top's (`ChannelStack::dirac_reflectance`).
 
-use super::common::block::{simd_columns, BLOCK};
+use super::common::block::{eval_rows, simd_columns, BLOCK};
 use super::common::mixture::defensive_mixture;
 use super::common::mixture_lanes::{self, LaneMixture, Proposals, MAX_TERMS};
 use super::common::options::{microsurface, DISTRIBUTION, G2};
 use super::{
-    microfacet, Differentiable, Field, Gradient, InputSpec, Model, ModelInfo, OptionSpec, Properties, Proposal, Seed,
+    microfacet, per_pair, Differentiable, Field, Gradient, InputSpec, Model, ModelInfo, OptionSpec, Properties,
+    Proposal, Seed,
 };
 use crate::bsdf::rough_dielectric;
 use crate::dual::Real;
@@ -742,26 +743,31 @@ fn gradient<'a>(p: &'a Prepared, seeds: &[Seed], n: usize) -> Result<Gradient<'a
         out.fill(0.0);
         match (&solved, &plain) {
             (Some(solved), _) => {
+                // The Duals' block, its m parameters moved to their places among the n.
                 let m = exact.len();
-                let mut own = vec![0.0; ch * (m + 1)];
+                let mut own = vec![0.0; wi[0].len() * ch * (m + 1)];
                 solved(wi, wo, &mut own);
-                for c in 0..ch {
-                    out[c * (n + 1)] = own[c * (m + 1)];
-                    for (k, &j) in exact.iter().enumerate() {
-                        out[c * (n + 1) + 1 + j] = own[c * (m + 1) + 1 + k];
+                for (o, own) in out.chunks_exact_mut(ch * (n + 1)).zip(own.chunks_exact(ch * (m + 1))) {
+                    for c in 0..ch {
+                        o[c * (n + 1)] = own[c * (m + 1)];
+                        for (k, &j) in exact.iter().enumerate() {
+                            o[c * (n + 1) + 1 + j] = own[c * (m + 1) + 1 + k];
+                        }
                     }
                 }
             }
-            (None, Some(s)) => {
+            (None, Some(s)) => eval_rows(wi, wo, out, |_, wi, wo, o| {
                 let f = lookup(p, |k| s.table[k], &s.tops, &s.depths, wi, wo);
-                (0..ch).for_each(|c| out[c * (n + 1)] = f[c]);
-            }
+                (0..ch).for_each(|c| o[c * (n + 1)] = f[c]);
+            }),
             (None, None) => unreachable!("f comes from the Duals' solve or the plain one"),
         }
-        for d in &differences {
-            let [fa, fb] = d.sides.each_ref().map(|s| lookup(p, |k| s.table[k], &s.tops, &s.depths, wi, wo));
-            (0..ch).for_each(|c| out[c * (n + 1) + 1 + d.param] = (fa[c] - fb[c]) / (2.0 * d.h));
-        }
+        eval_rows(wi, wo, out, |_, wi, wo, o| {
+            for d in &differences {
+                let [fa, fb] = d.sides.each_ref().map(|s| lookup(p, |k| s.table[k], &s.tops, &s.depths, wi, wo));
+                (0..ch).for_each(|c| o[c * (n + 1) + 1 + d.param] = (fa[c] - fb[c]) / (2.0 * d.h));
+            }
+        });
     }))
 }
 
@@ -779,7 +785,7 @@ fn solved<'a, const N: usize>(p: &'a Prepared, seeds: &[Seed]) -> Result<Gradien
         (channel_key(stack, c), own.collect::<Vec<Seed>>())
     };
     let Solved { table, tops, depths } = solve(p, channel, key)?;
-    Ok(Box::new(move |wi, wo, out| {
+    Ok(per_pair(move |wi, wo, out| {
         for (c, f) in lookup(p, |k| table[k], &tops, &depths, wi, wo).into_iter().enumerate() {
             super::store(out, c, f);
         }

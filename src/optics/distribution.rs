@@ -50,7 +50,8 @@ impl<T: Real> Microfacet<T> {
     /// The distribution of roughnesses αx, αy (each at least MIN_ALPHA; both zero: smooth) along the tangent frame
     /// rotated by `angle` (radians), in f64 or in Duals.
     pub fn with_parameters(dist: Distribution, alpha_x: T, alpha_y: T, angle: T) -> Self {
-        let (sin_phi, cos_phi) = angle.sin_cos();
+        // The frame of a constant angle 0 without the sine and cosine (exactly (0, 1) either way).
+        let (sin_phi, cos_phi) = if angle.same(T::from(0.0)) { (T::from(0.0), T::from(1.0)) } else { angle.sin_cos() };
         Self {
             dist,
             alpha_x: alpha_x.max_c(MIN_ALPHA),

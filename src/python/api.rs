@@ -465,7 +465,7 @@ pub fn eval_grad<'py>(
     let p = interruptible(py, || models::prepare_gradient(model, &stack, &args))?;
     let g = interruptible(py, || p.gradient(&seeds, n_params))?;
     let dirs = [("wi", wi, Kind::Direction), ("wo", wo, Kind::Direction)];
-    batch(py, &dirs, stack.channels * (n_params + 1), |r, o| g(vec3(&r[0]), vec3(&r[1]), o))
+    batch_blocks(py, &dirs, stack.channels * (n_params + 1), |b, o| g(b.columns(0), b.columns(1), o))
 }
 
 /// The Dirac (mirror) reflection at wo per channel: (..., channels).

@@ -48,6 +48,7 @@ mod table;
 pub use adding::Tir;
 pub use cov::{alpha_from_variance, hg_variance, variance_from_alpha, Cov, Lobe};
 
+use super::common::block::eval_rows;
 use super::common::options::{choice, flag, variant, G2, MICROFACET_TRANSMISSION, TRANSPORT_FIT};
 use super::corrections::transport_fit;
 use super::{
@@ -255,13 +256,16 @@ fn gradient<const N: usize>(p: &Prepared, seeds: &[Seed]) -> Result<Gradient<'st
         .as_ref()
         .filter(|_| anisotropic(&steps) == p.anisotropic)
         .map(|_| LobeTable::new(&steps, &opts, p.channels, p.anisotropic));
+    let channels = p.channels;
     Ok(Box::new(move |wi, wo, out| {
-        let mut f = vec![Dual::<N>::from(0.0); out.len() / (N + 1)];
-        match &table {
-            Some(t) => eval_table(t, diffuse.as_ref(), &opts, wi, wo, &mut f),
-            None => eval_exact(&steps, diffuse.as_ref(), &opts, wi, wo, &mut f),
-        }
-        f.into_iter().enumerate().for_each(|(c, x)| super::store(out, c, x));
+        let mut f = vec![Dual::<N>::from(0.0); channels];
+        eval_rows(wi, wo, out, |_, wi, wo, out| {
+            match &table {
+                Some(t) => eval_table(t, diffuse.as_ref(), &opts, wi, wo, &mut f),
+                None => eval_exact(&steps, diffuse.as_ref(), &opts, wi, wo, &mut f),
+            }
+            f.iter().enumerate().for_each(|(c, &x)| super::store(out, c, x));
+        })
     }))
 }
 
@@ -284,7 +288,7 @@ fn eval_exact<T: Real>(
     let (cos_phi, sin_phi) = azimuth(wo);
     let (lobes, view) = adding::adding(steps, opts, channels, T::from(cos_theta), cos_phi, sin_phi);
     for lobe in &lobes {
-        add_lobe(opts.g2, lobe.roughness(), &lobe.energy, wi, wo, out);
+        add_lobe(opts.g2, lobe.roughness(), |ch| lobe.energy[ch], wi, wo, out);
     }
     if diffuse.is_some() {
         // T↓ at θi and T↑ at θo (not at |wo·h|): symmetric under exchange, since T0i = Ti0 in this model.
@@ -301,12 +305,38 @@ fn eval_exact<T: Real>(
 
 /// Adds one GGX lobe of roughness (αx, αy, tangent angle) with per-channel `energy`; a lobe of roughness 0 is a Dirac
 /// delta, not part of f.
-fn add_lobe<T: Real>(g2: G2Form, (ax, ay, angle): (T, T, T), energy: &[T], wi: DVec3, wo: DVec3, out: &mut [T]) {
-    let mf = Microfacet::<T>::with_parameters(Distribution::Ggx, ax, ay, angle);
-    let shape = bsdf::reflection_geometry(&mf, g2, wi, wo).map_or(T::from(0.0), |(geo, _)| geo);
-    for (o, &e) in out.iter_mut().zip(energy) {
-        *o = *o + e * shape;
+fn add_lobe<T: Real>(
+    g2: G2Form,
+    roughness: (T, T, T),
+    energy: impl Fn(usize) -> T,
+    wi: DVec3,
+    wo: DVec3,
+    out: &mut [T],
+) {
+    let shape = lobe_shape(g2, roughness, wi, wo);
+    for (ch, o) in out.iter_mut().enumerate() {
+        *o = *o + energy(ch) * shape;
     }
+}
+
+/// A GGX lobe's D G2 / (4 cos θi cos θo) (Walter et al. 2007 eq. 20), 0 for a Dirac one. In Duals it runs with the
+/// partials by the lobe's own roughness (one for an isotropic lobe, three otherwise), composed into T's N
+/// derivatives: fewer than N to carry through the geometry.
+fn lobe_shape<T: Real>(g2: G2Form, (ax, ay, angle): (T, T, T), wi: DVec3, wo: DVec3) -> T {
+    fn shape<R: Real>(g2: G2Form, ax: R, ay: R, angle: R, wi: DVec3, wo: DVec3) -> R {
+        let mf = Microfacet::<R>::with_parameters(Distribution::Ggx, ax, ay, angle);
+        bsdf::reflection_geometry(&mf, g2, wi, wo).map_or(R::from(0.0), |(geo, _)| geo)
+    }
+    if T::DERIVATIVES == 0 {
+        return T::from(shape(g2, ax.value(), ay.value(), angle.value(), wi, wo));
+    }
+    if ax.same(ay) && angle.same(T::from(0.0)) {
+        let a = Dual::<1>::seeded(ax.value(), 0, 1.0);
+        return T::compose(shape(g2, a, a, Dual::from(0.0), wi, wo), [ax]);
+    }
+    let [x, y, phi] = [ax, ay, angle].map(|v| v.value());
+    let d = |v: f64, k: usize| Dual::<3>::seeded(v, k, 1.0);
+    T::compose(shape(g2, d(x, 0), d(y, 1), d(phi, 2), wi, wo), [ax, ay, angle])
 }
 
 /// Adds the diffuse base ρ/π · T↓ T↑ / ((1 − ρ R̄↑) η²) from the energies transmitted down and up per channel.
@@ -342,7 +372,7 @@ impl Model for Prepared {
         let (lobes, t_up) = match &self.table {
             Some(t) => {
                 let c = t.corner_of(wo.z, wo);
-                (t.lobes_at(&c), t.energy_at(&t.t_up, &c))
+                (t.lobes_at(&c), (0..self.channels).map(|ch| t.energy_at(&t.t_up, &c, ch)).collect())
             }
             None => {
                 let (cos_phi, sin_phi) = azimuth(wo);

@@ -90,28 +90,56 @@ impl<T: Real> LobeTable<T> {
     /// The lobes at the corners `c` (`corner_of` the viewing direction, at cos θo or |wo·h| with `symmetric`),
     /// interpolated as the block evaluator does: per lobe its GGX roughness (αx, αy, tangent angle) and energies.
     pub(super) fn lobes_at(&self, c: &Corner) -> Vec<GgxLobe<T>> {
-        let w = self.lobes * self.width;
         (0..self.lobes)
             .map(|j| {
-                let value = |i: usize| interpolate(c, &self.record, w, j * self.width + i);
-                let (alpha, first) = if self.azimuths > 1 {
-                    let (ax, ay, cos, sin) = Cov { xx: value(0), xy: value(1), yy: value(2) }.eigen_frame();
-                    ((ax, ay, sin.atan2(cos)), 3)
-                } else {
-                    ((value(0), value(0), T::from(0.0)), 1)
-                };
-                (alpha, (first..self.width).map(value).collect())
+                (self.roughness_at(c, j), (0..self.width - self.first()).map(|ch| self.energy_of(c, j, ch)).collect())
             })
             .collect()
     }
 
-    /// The energy transmitted down to the base (`t_down`) or up from it (`t_up`) per channel at the corners `c`.
-    pub(super) fn energy_at(&self, values: &[T], c: &Corner) -> Vec<T> {
-        let channels = values.len() / (self.nodes * self.azimuths);
-        (0..channels).map(|ch| interpolate(c, values, channels, ch)).collect()
+    /// Where a lobe's energies start in its record: after its roughness matrix (xx, xy, yy) or its one roughness.
+    fn first(&self) -> usize {
+        if self.azimuths > 1 {
+            3
+        } else {
+            1
+        }
+    }
+
+    /// Value i of lobe j's record at the corners `c`.
+    #[inline(always)]
+    fn value_at(&self, c: &Corner, j: usize, i: usize) -> T {
+        interpolate(c, &self.record, self.lobes * self.width, j * self.width + i)
+    }
+
+    /// Lobe j's GGX roughness (αx, αy, tangent angle) at the corners `c`: its interpolated roughness matrix
+    /// eigen-decomposed (Yamaguchi et al. 2019), or its one roughness.
+    #[inline(always)]
+    pub(super) fn roughness_at(&self, c: &Corner, j: usize) -> (T, T, T) {
+        if self.azimuths > 1 {
+            let value = |i: usize| self.value_at(c, j, i);
+            let (ax, ay, cos, sin) = Cov { xx: value(0), xy: value(1), yy: value(2) }.eigen_frame();
+            (ax, ay, sin.atan2(cos))
+        } else {
+            let alpha = self.value_at(c, j, 0);
+            (alpha, alpha, T::from(0.0))
+        }
+    }
+
+    /// Lobe j's energy in channel ch at the corners `c`.
+    #[inline(always)]
+    pub(super) fn energy_of(&self, c: &Corner, j: usize, ch: usize) -> T {
+        self.value_at(c, j, self.first() + ch)
+    }
+
+    /// The energy transmitted down to the base (`t_down`) or up from it (`t_up`) in channel ch at the corners `c`.
+    #[inline(always)]
+    pub(super) fn energy_at(&self, values: &[T], c: &Corner, ch: usize) -> T {
+        interpolate(c, values, values.len() / (self.nodes * self.azimuths), ch)
     }
 
     /// The corners of the direction w looked up at the cosine `cos_theta` (see `corners`).
+    #[inline(always)]
     pub(super) fn corner_of(&self, cos_theta: f64, w: DVec3) -> Corner {
         let v = if self.azimuths > 1 { pseudo_angle(w.x, w.y) * (FRAC_1_PI * self.azimuths as f64) } else { 0.0 };
         self.corner(cos_theta, v)
@@ -160,7 +188,8 @@ impl<T: Real> LobeTable<T> {
 /// Value `i` of `values` (records of `width`) interpolated at the corners `c`.
 #[inline(always)]
 fn interpolate<T: Real>(c: &Corner, values: &[T], width: usize, i: usize) -> T {
-    c.iter().fold(T::from(0.0), |sum, &(k, w)| sum + values[k as usize * width + i] * w)
+    // Corners of weight 0 (an isotropic table's last two) add nothing.
+    c.iter().filter(|&&(_, w)| w != 0.0).fold(T::from(0.0), |sum, &(k, w)| sum + values[k as usize * width + i] * w)
 }
 
 /// f at (wi, wo) from the table `t`, as `eval_columns` interpolates it, row by row: in Duals, the gradient of the
@@ -178,12 +207,13 @@ pub(super) fn eval_table<T: Real>(
         return;
     }
     let cos_theta = if opts.symmetric { symmetric_cosine(wi, wo) } else { wo.z };
-    for (alpha, energy) in t.lobes_at(&t.corner_of(cos_theta, wo)) {
-        add_lobe(opts.g2, alpha, &energy, wi, wo, out);
+    let view = t.corner_of(cos_theta, wo);
+    for j in 0..t.lobes {
+        add_lobe(opts.g2, t.roughness_at(&view, j), |ch| t.energy_of(&view, j, ch), wi, wo, out);
     }
     if diffuse.is_some() {
-        let (down, up) = (t.energy_at(&t.t_down, &t.corner_of(wi.z, wi)), t.energy_at(&t.t_up, &t.corner_of(wo.z, wo)));
-        add_diffuse(diffuse, |ch| down[ch], |ch| up[ch], out);
+        let (down, up) = (t.corner_of(wi.z, wi), t.corner_of(wo.z, wo));
+        add_diffuse(diffuse, |ch| t.energy_at(&t.t_down, &down, ch), |ch| t.energy_at(&t.t_up, &up, ch), out);
     }
 }
 

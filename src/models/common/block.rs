@@ -65,7 +65,12 @@ pub fn row(w: [&[f64]; 3], r: usize) -> DVec3 {
 
 /// A block evaluated row by row with `eval(r, wi, wo, out_row)`: the block path of what has no vectorized form.
 #[inline(always)]
-pub fn eval_rows(wi: [&[f64]; 3], wo: [&[f64]; 3], out: &mut [f64], eval: impl Fn(usize, DVec3, DVec3, &mut [f64])) {
+pub fn eval_rows(
+    wi: [&[f64]; 3],
+    wo: [&[f64]; 3],
+    out: &mut [f64],
+    mut eval: impl FnMut(usize, DVec3, DVec3, &mut [f64]),
+) {
     let k = out.len() / wi[0].len();
     for (r, o) in out.chunks_exact_mut(k).enumerate() {
         eval(r, row(wi, r), row(wo, r), o);

@@ -22,7 +22,7 @@ use super::options::Args;
 use crate::bsdf;
 use crate::dual::{dir, Dir, Dual, Real};
 use crate::error::{value_error, Result};
-use crate::models::{seeded, store, Gradient, Proposal, Seed};
+use crate::models::{per_pair, seeded, store, Gradient, Proposal, Seed};
 use crate::optics::distribution::{Distribution, G2Form, Microfacet};
 use crate::optics::fresnel::{self, FresnelForm};
 use crate::optics::{diffuse, sin_theta};
@@ -194,7 +194,7 @@ pub fn gradient<'a, const N: usize, M: RealTransport + Sync>(
     let value = |layer: usize, field: Field, channel: usize, v: f64| seeded::<N>(seeds, layer, field, channel, v);
     let layers = layers_with(stack, dist, opts.clamp_roughness, value);
     let channels = stack.channels;
-    Ok(Box::new(move |wi, wo, out| {
+    Ok(per_pair(move |wi, wo, out| {
         let mut f = vec![Dual::<N>::from(0.0); channels];
         walk.eval_real(model, &layers, wi, wo, &mut f);
         f.into_iter().enumerate().for_each(|(c, x)| store(out, c, x));
