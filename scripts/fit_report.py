@@ -417,6 +417,8 @@ def speed_section(rng) -> list:
     t0 = time.perf_counter()
     r = lamina.fit(template, wi, wo, data, "tabulated", starts=1, progress=False)
     tabulated = time.perf_counter() - t0
+    found = ", ".join(f"{k} = {v:.3f}" for k, v in r.params.items())
+    minimum = " (0 at the truth: a local minimum, which `fit`'s several starts are for)" if r.cost > 1e-9 else ""
     return [
         "## Speed",
         "",
@@ -426,7 +428,8 @@ def speed_section(rng) -> list:
         "",
         f"With `tabulated` (a smooth coat's η and σa over a metal's η and α, {SAMPLES} samples, one start, "
         f"{len(r.history[0])} evaluations): {tabulated:.1f} s (the issue's goal: 20 s). Each evaluation solves the",
-        "stack once, in Duals with four derivatives (a new stack's `eval_grad` builds no f64 table).",
+        "stack once, in Duals with four derivatives (a new stack's `eval_grad` builds no f64 table). From the Params'",
+        f"starts it ends at {found} (truth {', '.join(map(str, truth.values()))}), cost {r.cost:.2g}{minimum}.",
         "",
     ]
 

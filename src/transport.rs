@@ -108,6 +108,31 @@ impl<T: Real> ChannelStack<T> {
         }
     }
 
+    /// Boundary b's own numbers, all that its BSDF reads: an interface's IOR and microfacets; the base's IOR, κ and
+    /// microfacets, or its albedo and σ.
+    pub fn boundary_numbers(&self, b: usize) -> Vec<T> {
+        match (self.interfaces.get(b), &self.base) {
+            (Some(it), _) => [&[it.eta][..], &it.mf.numbers()].concat(),
+            (None, Base::Conductor { mf, eta, k }) => [&[*eta, *k][..], &mf.numbers()].concat(),
+            (None, Base::Diffuse { albedo, sigma }) => vec![*albedo, *sigma],
+        }
+    }
+
+    /// The stack with every number as `x` maps it (to another kind of Real).
+    pub fn map<R: Real>(&self, x: impl Fn(T) -> R) -> ChannelStack<R> {
+        let slab =
+            |s: &Slab<T>| Slab { thickness: x(s.thickness), sigma_a: x(s.sigma_a), sigma_s: x(s.sigma_s), g: x(s.g) };
+        ChannelStack {
+            interfaces: self.interfaces.iter().map(|it| Interface { mf: it.mf.map(&x), eta: x(it.eta) }).collect(),
+            slabs: self.slabs.iter().map(slab).collect(),
+            base: match &self.base {
+                Base::Conductor { mf, eta, k } => Base::Conductor { mf: mf.map(&x), eta: x(*eta), k: x(*k) },
+                Base::Diffuse { albedo, sigma } => Base::Diffuse { albedo: x(*albedo), sigma: x(*sigma) },
+            },
+            g2: self.g2,
+        }
+    }
+
     /// True when boundary `b` scatters through Dirac deltas only (a smooth interface or a smooth conductor).
     pub fn is_delta(&self, b: usize) -> bool {
         match self.interfaces.get(b) {

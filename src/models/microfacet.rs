@@ -215,7 +215,7 @@ fn gradient<const N: usize>(p: &Prepared, seeds: &[Seed]) -> Result<Gradient<'st
 
 /// A rough conductor's f and gradient over a block (`Gradient`): the geometry D G2 / (4 cos θi cos θo) per row in
 /// Duals (αx, αy, angle), then per channel the exact Fresnel F(cos θh; η, κ) with its partials ∂F/∂η and ∂F/∂κ in a
-/// Dual<2>, a loop over the rows that vectorizes, chained to the N parameters through η's and κ's own derivatives.
+/// Dual<2>, a loop over the rows that vectorizes, composed into the N parameters' derivatives (`Real::compose`).
 #[inline(always)]
 fn conductor_gradient<const N: usize>(
     mf: &Microfacet<Dual<N>>,
@@ -233,17 +233,14 @@ fn conductor_gradient<const N: usize>(
         (geo[r], cos_h[r]) = (if above { g } else { Dual::from(0.0) }, c);
     }
     let width = out.len() / n;
-    let mut f = [[0.0; 3]; BLOCK];
+    let mut f = [Dual::<2>::from(0.0); BLOCK];
     for c in 0..eta.len() {
-        let (e, x) = (Dual { v: eta[c].v, d: [1.0, 0.0] }, Dual { v: k[c].v, d: [0.0, 1.0] });
+        let (e, x) = (Dual::seeded(eta[c].v, 0, 1.0), Dual::seeded(k[c].v, 1, 1.0));
         for r in 0..n {
-            let fr = fresnel::conductor(cos_h[r], e, x);
-            f[r] = [fr.v, fr.d[0], fr.d[1]];
+            f[r] = fresnel::conductor(cos_h[r], e, x);
         }
         for (r, o) in out.chunks_exact_mut(width).enumerate() {
-            let [v, d_eta, d_k] = f[r];
-            let fresnel = Dual { v, d: std::array::from_fn(|i| d_eta * eta[c].d[i] + d_k * k[c].d[i]) };
-            super::store(o, c, geo[r] * fresnel);
+            super::store(o, c, geo[r] * Dual::compose(f[r], [eta[c], k[c]]));
         }
     }
 }

@@ -62,6 +62,17 @@ impl<T: Real> Microfacet<T> {
         }
     }
 
+    /// Its numbers: the roughnesses and the frame's cosine and sine.
+    pub fn numbers(&self) -> [T; 4] {
+        [self.alpha_x, self.alpha_y, self.cos_phi, self.sin_phi]
+    }
+
+    /// The same microfacets with each number as `x` maps it (to another kind of Real).
+    pub fn map<R: Real>(&self, x: impl Fn(T) -> R) -> Microfacet<R> {
+        let (alpha_x, alpha_y, cos_phi, sin_phi) = (x(self.alpha_x), x(self.alpha_y), x(self.cos_phi), x(self.sin_phi));
+        Microfacet { dist: self.dist, alpha_x, alpha_y, smooth: self.smooth, cos_phi, sin_phi }
+    }
+
     /// True when both roughnesses are zero: the interface is a perfectly smooth (Dirac) one, whose reflection and
     /// refraction are delta lobes that a BSDF evaluation does not return.
     pub fn is_smooth(&self) -> bool {

@@ -16,8 +16,8 @@
 //! microfacets gives (each column rescaled to it: the quadrature misses narrow lobes). The layers combine by the
 //! adding equations, order by order.
 
-use crate::dual::Real;
 use crate::dual::{dir, dot, value};
+use crate::dual::{Dual, Real};
 use crate::error::Result;
 use crate::optics::distribution::{G2Form, Microfacet};
 use crate::optics::{fresnel, reflect_about, refract_about};
@@ -172,8 +172,30 @@ fn every_order<T: Real>(m: Mat<T>) -> Op<T> {
     vec![m; ORDERS]
 }
 
+/// `$f(args)` compiled for AVX2 + FMA when the CPU has them (the loops over a row, of f64 or of Duals, run in 4
+/// lanes), else as is: the same bits either way (Rust does not contract a * b + c into an FMA by itself).
+macro_rules! with_avx2 {
+    ($f:ident<$t:ident>($($arg:ident: $ty:ty),*) -> $out:ty) => {{
+        #[cfg(target_arch = "x86_64")]
+        if crate::engine::has_avx2() {
+            #[target_feature(enable = "avx2,fma")]
+            unsafe fn avx2<$t: Real>($($arg: $ty),*) -> $out {
+                $f($($arg),*)
+            }
+            // SAFETY: the CPU supports every feature the function is compiled for.
+            return unsafe { avx2($($arg),*) };
+        }
+        $f($($arg),*)
+    }};
+}
+
 /// a · b.
 fn mul<T: Real>(a: &[T], b: &[T]) -> Mat<T> {
+    with_avx2!(mul_in<T>(a: &[T], b: &[T]) -> Mat<T>)
+}
+
+#[inline(always)]
+fn mul_in<T: Real>(a: &[T], b: &[T]) -> Mat<T> {
     let n = N_THETA;
     let mut c = zeros();
     for i in 0..n {
@@ -197,6 +219,11 @@ fn add<T: Real>(a: &[T], b: &[T]) -> Mat<T> {
 /// of its smooth boundaries: a maps such a cell onto itself with weight 1 and nothing else into or out of it, so no
 /// light reaches it. Those cells are taken out of the system (their rows of x are 0, as b's are).
 pub(super) fn solve_one_minus<T: Real>(a: &[T], b: &[T]) -> Mat<T> {
+    with_avx2!(solve_one_minus_in<T>(a: &[T], b: &[T]) -> Mat<T>)
+}
+
+#[inline(always)]
+fn solve_one_minus_in<T: Real>(a: &[T], b: &[T]) -> Mat<T> {
     let n = a.len().isqrt();
     let v = |k: usize| a[k].value();
     let trapped = |j: usize| {
@@ -486,9 +513,57 @@ pub(super) fn interface<T: Real>(cells: &Cells, s: &ChannelStack<T>, b: usize, p
     layer
 }
 
-/// The base's reflection operator (light from above), for `paths`.
-pub(super) fn base<T: Real>(cells: &Cells, s: &ChannelStack<T>, paths: Paths) -> Op<T> {
-    let b = s.interfaces.len();
+/// `$op(cells, s, b, paths)` (`interface` or `base`) where T carries derivatives: computed in Duals of boundary b's
+/// own distinct moving numbers alone (`moving`, K ≤ 3; else in T) and composed into T's N by the chain rule, entry
+/// by entry (`$compose`): far fewer derivatives to carry through the projection of its BSDF and its energies.
+macro_rules! own_duals {
+    ($op:path, $compose:ident, $cells:expr, $s:expr, $b:expr, $paths:expr) => {{
+        let x = moving($s, $b);
+        match x.len() {
+            _ if T::DERIVATIVES == 0 => $op($cells, $s, $b, $paths),
+            0 => $compose::<T, 0>($op($cells, &in_duals($s, &x), $b, $paths), &x),
+            1 => $compose::<T, 1>($op($cells, &in_duals($s, &x), $b, $paths), &x),
+            2 => $compose::<T, 2>($op($cells, &in_duals($s, &x), $b, $paths), &x),
+            3 => $compose::<T, 3>($op($cells, &in_duals($s, &x), $b, $paths), &x),
+            _ => $op($cells, $s, $b, $paths),
+        }
+    }};
+}
+
+/// Boundary b's distinct numbers that carry derivatives.
+fn moving<T: Real>(s: &ChannelStack<T>, b: usize) -> Vec<T> {
+    let mut x: Vec<T> = Vec::new();
+    for v in s.boundary_numbers(b) {
+        if !v.same(T::from(v.value())) && !x.iter().any(|m| m.same(v)) {
+            x.push(v);
+        }
+    }
+    x
+}
+
+/// The stack in Duals of K derivatives, one per number of `x` (the others constants): what boundary b's operators
+/// read when `x` are its moving numbers.
+fn in_duals<T: Real, const K: usize>(s: &ChannelStack<T>, x: &[T]) -> ChannelStack<Dual<K>> {
+    s.map(|v| match x.iter().position(|m| m.same(v)) {
+        Some(k) => Dual::seeded(v.value(), k, 1.0),
+        None => Dual::from(v.value()),
+    })
+}
+
+/// An operator in Duals of the numbers `x`, composed into T's derivatives (`Real::compose`).
+fn composed<T: Real, const K: usize>(op: Op<Dual<K>>, x: &[T]) -> Op<T> {
+    let x: [T; K] = std::array::from_fn(|k| x[k]);
+    op.into_iter().map(|m| m.into_iter().map(|e| T::compose(e, x)).collect()).collect()
+}
+
+/// `composed` for a layer's four operators.
+fn composed_operators<T: Real, const K: usize>(o: Operators<Dual<K>>, x: &[T]) -> Operators<T> {
+    let c = |op| composed(op, x);
+    Operators { r_top: c(o.r_top), r_bottom: c(o.r_bottom), t_down: c(o.t_down), t_up: c(o.t_up) }
+}
+
+/// The reflection operator of the base, boundary b (light from above), for `paths`.
+pub(super) fn base<T: Real>(cells: &Cells, s: &ChannelStack<T>, b: usize, paths: Paths) -> Op<T> {
     if paths == Paths::Dirac && !s.is_delta(b) {
         return every_order(zeros());
     }
@@ -599,7 +674,7 @@ pub(super) fn reflection_below_top<T: Real>(
     if n == 0 {
         return Ok(every_order(zeros()));
     }
-    let mut r = base(cells, s, paths);
+    let mut r = own_duals!(base, composed, cells, s, n, paths);
     for i in (0..n).rev() {
         crate::interrupt::check()?;
         if let Some(sl) = slab(cells, s, i, paths)? {
@@ -639,7 +714,7 @@ impl<T: Real> Shared<T> {
         if let Some(p) = self.kept.borrow().iter().find(|p| (p.interface, p.paths) == (interface, paths)) {
             return p.ops.clone();
         }
-        let ops = Rc::new(self::interface(cells, s, b, paths));
+        let ops = Rc::new(own_duals!(self::interface, composed_operators, cells, s, b, paths));
         if self.recurring.contains(&interface) {
             self.kept.borrow_mut().push(Projected { interface, paths, ops: ops.clone() });
         }
@@ -795,7 +870,7 @@ mod tests {
         // f = ρ/π: the cell-averaged Fourier coefficient ā₀ is ρ/π everywhere, every other order 0.
         let s = channel(vec![Layer::Diffuse { albedo: vec![0.7], roughness: 0.0 }]);
         let cells = Cells::new();
-        let op = base(&cells, &s, Paths::All);
+        let op = base(&cells, &s, s.interfaces.len(), Paths::All);
         for (m, order) in op.iter().enumerate() {
             for o in 0..N_THETA {
                 for j in 0..N_THETA {
@@ -862,7 +937,7 @@ mod tests {
         let lambert = Layer::Diffuse { albedo: vec![1.0], roughness: 0.0 };
         let s = channel(vec![dielectric(1.5, 0.0, 1.0, 0.0, 0.0), dielectric(1.2, 0.0, 1.0, 0.0, 0.0), lambert]);
         let cells = Cells::new();
-        let below = over(&interface(&cells, &s, 1, Paths::All), base(&cells, &s, Paths::All), true);
+        let below = over(&interface(&cells, &s, 1, Paths::All), base(&cells, &s, s.interfaces.len(), Paths::All), true);
         let r = over(&interface(&cells, &s, 0, Paths::All), below, true);
         assert!(r.iter().all(|m| m.iter().all(|v| v.is_finite())));
         for (j, e) in energies(&cells, &r).iter().enumerate() {

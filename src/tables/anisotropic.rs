@@ -463,7 +463,7 @@ fn reflection_below_top(
     anisotropic_ops: &mut Vec<(Interface, std::rc::Rc<Operators>)>,
 ) -> Result<Op> {
     let n = s.interfaces.len();
-    let mut r = if let Some(r) = base { r } else { from_isotropic(fine, coarse, &iso::base(fine, s, Paths::All)) };
+    let mut r = if let Some(r) = base { r } else { from_isotropic(fine, coarse, &iso::base(fine, s, n, Paths::All)) };
     for i in (0..n).rev() {
         crate::interrupt::check()?;
         if let Some(sl) = iso::slab(fine, s, i, Paths::All)? {
