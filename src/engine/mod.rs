@@ -186,6 +186,26 @@ pub fn has_avx2() -> bool {
     std::arch::is_x86_feature_detected!("avx2") && std::arch::is_x86_feature_detected!("fma")
 }
 
+/// `$body`, a function of the named arguments, compiled for AVX2 + FMA when the CPU has them (the loops that
+/// vectorize run in 4 f64 lanes, of f64 or of Duals), else as is: `with_avx2!([generics] (arg: Type, …) -> Out =>
+/// body)` returns from the enclosing function on the AVX2 path and otherwise evaluates to `body`. Rust never
+/// contracts a * b + c into an FMA by itself, so both paths give identical bits.
+macro_rules! with_avx2 {
+    ([$($g:tt)*] ($($arg:ident: $ty:ty),*) $(-> $out:ty)? => $body:expr) => {{
+        #[cfg(target_arch = "x86_64")]
+        if $crate::engine::has_avx2() {
+            #[target_feature(enable = "avx2,fma")]
+            unsafe fn avx2<$($g)*>($($arg: $ty),*) $(-> $out)? {
+                $body
+            }
+            // SAFETY: the CPU supports every feature the function is compiled for.
+            return unsafe { avx2($($arg),*) };
+        }
+        $body
+    }};
+}
+pub(crate) use with_avx2;
+
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2,fma")]
 unsafe fn rows_avx2<P: Pass>(p: &P, a: Rows, b: Rows, first: usize, out: &mut [f32], f: &mut [Floats]) -> bool {

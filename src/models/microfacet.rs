@@ -18,7 +18,7 @@ use super::{
 };
 use crate::bsdf;
 use crate::dual::{Dual, Real};
-use crate::engine::{self, Floats, Rows, V3};
+use crate::engine::{self, with_avx2, Floats, Rows, V3};
 use crate::error::{value_error, Result};
 use crate::models::FitLanes;
 use crate::optics::diffuse;
@@ -161,23 +161,17 @@ fn gradient<const N: usize>(p: &Prepared, seeds: &[Seed]) -> Result<Gradient<'st
                 if smooth {
                     return out.fill(0.0);
                 }
-                #[cfg(target_arch = "x86_64")]
-                if engine::has_avx2() {
-                    #[target_feature(enable = "avx2,fma")]
-                    unsafe fn avx2<const N: usize>(
+                let (mf, ior) = (&mfd, [&eta[..], &k[..]]);
+                with_avx2!(
+                    [const N: usize] (
                         mf: &Microfacet<Dual<N>>,
                         g2: G2Form,
                         ior: [&[Dual<N>]; 2],
                         wi: [&[f64]; 3],
                         wo: [&[f64]; 3],
-                        out: &mut [f64],
-                    ) {
-                        conductor_gradient(mf, g2, ior, wi, wo, out)
-                    }
-                    // SAFETY: the CPU supports every feature the function is compiled for.
-                    return unsafe { avx2(&mfd, g2, [&eta, &k], wi, wo, out) };
-                }
-                conductor_gradient(&mfd, g2, [&eta, &k], wi, wo, out)
+                        out: &mut [f64]
+                    ) => conductor_gradient(mf, g2, ior, wi, wo, out)
+                )
             }))
         }
         Prepared::Diffuse { albedo, sigma } => {

@@ -722,27 +722,25 @@ fn gradient<'a>(p: &'a Prepared, seeds: &[Seed], n: usize) -> Result<Gradient<'a
     exact.dedup();
     let renumbered: Vec<Seed> =
         in_duals.iter().map(|s| Seed { param: exact.partition_point(|&j| j < s.param), ..*s }).collect();
-    let solved = match exact.len() {
-        0 => None,
-        m => Some(super::dual_width!(m, solved(p, &renumbered))?),
-    };
-    let differences = differences(p, &by_difference)?;
-    // Without exact parameters, f from the table `eval` reads, or from the solve in f64 where there is none
-    // (`Unsolved`).
-    let plain = match (&solved, p.table.is_empty()) {
-        (Some(_), _) => None,
-        (None, true) => Some(solve(p, |c| ChannelStack::new(&p.stack, c, p.surface), |c| channel_key(&p.stack, c))?),
-        (None, false) => Some(Solved {
+    // f with the exact derivatives from the Duals' solve; without exact parameters, f from the table `eval` reads,
+    // or from the solve in f64 where there is none (`Unsolved`).
+    let source = match exact.len() {
+        0 if p.table.is_empty() => {
+            F::Plain(solve(p, |c| ChannelStack::new(&p.stack, c, p.surface), |c| channel_key(&p.stack, c))?)
+        }
+        0 => F::Plain(Solved {
             table: p.table.iter().map(|&f| f as f64).collect(),
             tops: p.channels.iter().map(|s| s.interfaces[0]).collect(),
             depths: p.clear.clone().unwrap_or_default(),
         }),
+        m => F::Duals(super::dual_width!(m, solved(p, &renumbered))?),
     };
+    let differences = differences(p, &by_difference)?;
     Ok(Box::new(move |wi, wo, out| {
         let ch = p.eta.len();
         out.fill(0.0);
-        match (&solved, &plain) {
-            (Some(solved), _) => {
+        match &source {
+            F::Duals(solved) => {
                 // The Duals' block, its m parameters moved to their places among the n.
                 let m = exact.len();
                 let mut own = vec![0.0; wi[0].len() * ch * (m + 1)];
@@ -756,11 +754,10 @@ fn gradient<'a>(p: &'a Prepared, seeds: &[Seed], n: usize) -> Result<Gradient<'a
                     }
                 }
             }
-            (None, Some(s)) => eval_rows(wi, wo, out, |_, wi, wo, o| {
+            F::Plain(s) => eval_rows(wi, wo, out, |_, wi, wo, o| {
                 let f = lookup(p, |k| s.table[k], &s.tops, &s.depths, wi, wo);
                 (0..ch).for_each(|c| o[c * (n + 1)] = f[c]);
             }),
-            (None, None) => unreachable!("f comes from the Duals' solve or the plain one"),
         }
         eval_rows(wi, wo, out, |_, wi, wo, o| {
             for d in &differences {
@@ -769,6 +766,12 @@ fn gradient<'a>(p: &'a Prepared, seeds: &[Seed], n: usize) -> Result<Gradient<'a
             }
         });
     }))
+}
+
+/// Where `gradient` takes f from: the Duals' solve (with the exact derivatives), or a plain one.
+enum F<'a> {
+    Duals(Gradient<'a>),
+    Plain(Solved<f64>),
 }
 
 /// f and its exact gradient by the parameters of `seeds` (numbered 0..N): the table solved again in Duals

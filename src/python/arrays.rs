@@ -120,18 +120,10 @@ impl Block {
     /// are branch-free so that they vectorize (with AVX2 when the CPU has it); a block with a bad row is scanned
     /// again to find it.
     fn validate(&mut self, j: usize, kind: Kind) -> Option<(usize, bool)> {
-        #[cfg(target_arch = "x86_64")]
-        if crate::engine::has_avx2() {
-            // SAFETY: the CPU supports every feature the function is compiled for.
-            return unsafe { self.validate_avx2(j, kind) };
-        }
-        self.validate_portable(j, kind)
-    }
-
-    #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx2,fma")]
-    unsafe fn validate_avx2(&mut self, j: usize, kind: Kind) -> Option<(usize, bool)> {
-        self.validate_portable(j, kind)
+        let block = self;
+        crate::engine::with_avx2!(
+            [] (block: &mut Block, j: usize, kind: Kind) -> Option<(usize, bool)> => block.validate_portable(j, kind)
+        )
     }
 
     #[inline(always)]

@@ -18,6 +18,7 @@
 
 use crate::dual::{dir, dot, value};
 use crate::dual::{Dual, Real};
+use crate::engine::with_avx2;
 use crate::error::Result;
 use crate::optics::distribution::{G2Form, Microfacet};
 use crate::optics::{fresnel, reflect_about, refract_about};
@@ -172,26 +173,9 @@ fn every_order<T: Real>(m: Mat<T>) -> Op<T> {
     vec![m; ORDERS]
 }
 
-/// `$f(args)` compiled for AVX2 + FMA when the CPU has them (the loops over a row, of f64 or of Duals, run in 4
-/// lanes), else as is: the same bits either way (Rust does not contract a * b + c into an FMA by itself).
-macro_rules! with_avx2 {
-    ($f:ident<$t:ident>($($arg:ident: $ty:ty),*) -> $out:ty) => {{
-        #[cfg(target_arch = "x86_64")]
-        if crate::engine::has_avx2() {
-            #[target_feature(enable = "avx2,fma")]
-            unsafe fn avx2<$t: Real>($($arg: $ty),*) -> $out {
-                $f($($arg),*)
-            }
-            // SAFETY: the CPU supports every feature the function is compiled for.
-            return unsafe { avx2($($arg),*) };
-        }
-        $f($($arg),*)
-    }};
-}
-
 /// a · b.
 fn mul<T: Real>(a: &[T], b: &[T]) -> Mat<T> {
-    with_avx2!(mul_in<T>(a: &[T], b: &[T]) -> Mat<T>)
+    with_avx2!([T: Real] (a: &[T], b: &[T]) -> Mat<T> => mul_in(a, b))
 }
 
 #[inline(always)]
@@ -219,7 +203,7 @@ fn add<T: Real>(a: &[T], b: &[T]) -> Mat<T> {
 /// of its smooth boundaries: a maps such a cell onto itself with weight 1 and nothing else into or out of it, so no
 /// light reaches it. Those cells are taken out of the system (their rows of x are 0, as b's are).
 pub(super) fn solve_one_minus<T: Real>(a: &[T], b: &[T]) -> Mat<T> {
-    with_avx2!(solve_one_minus_in<T>(a: &[T], b: &[T]) -> Mat<T>)
+    with_avx2!([T: Real] (a: &[T], b: &[T]) -> Mat<T> => solve_one_minus_in(a, b))
 }
 
 #[inline(always)]

@@ -78,20 +78,13 @@ pub fn eval_rows(
 }
 
 /// The body of a `Model::eval_block` that runs `$p.eval_columns(wi, wo, out)` (an `#[inline(always)]` method of
-/// type `$ty`) compiled for AVX2 + FMA when the CPU has them (4 f64 lanes in the loops that vectorize), else as is.
-/// Rust never contracts a * b + c into an FMA by itself, so both paths give identical bits.
+/// type `$ty`) through `with_avx2!`.
 macro_rules! simd_columns {
     ($ty:ty, $p:expr, $wi:expr, $wo:expr, $out:expr) => {{
-        #[cfg(target_arch = "x86_64")]
-        if $crate::engine::has_avx2() {
-            #[target_feature(enable = "avx2,fma")]
-            unsafe fn avx2(p: &$ty, wi: [&[f64]; 3], wo: [&[f64]; 3], out: &mut [f64]) {
-                p.eval_columns(wi, wo, out)
-            }
-            // SAFETY: the CPU supports every feature the function is compiled for.
-            return unsafe { avx2($p, $wi, $wo, $out) };
-        }
-        $p.eval_columns($wi, $wo, $out)
+        let (p, wi, wo, out) = ($p, $wi, $wo, $out);
+        $crate::engine::with_avx2!(
+            [] (p: &$ty, wi: [&[f64]; 3], wo: [&[f64]; 3], out: &mut [f64]) => p.eval_columns(wi, wo, out)
+        )
     }};
 }
 pub(crate) use simd_columns;
