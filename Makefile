@@ -52,8 +52,10 @@ system-deps:
 test-deps: venv system-deps
 	$(VPY) -m pip install -q "pytest>=7" "hypothesis>=6" "colour-science>=0.4.4" scipy "mitsuba>=3.9,<3.10" "ruff==0.17.6" "dask[distributed]>=2024.1" "iadpython>=0.5" mypy nbclient nbformat ipykernel
 
+# The unit tests (src/, `--lib`: there are no doctests, and lint's clippy compiles the examples) in the rust-test
+# profile of Cargo.toml.
 rust-test:
-	cargo test --release
+	cargo test --profile rust-test --lib
 
 # Formatting and lints of both languages (clippy over every target, the Python bindings included), and the
 # extension's type stubs against the built module (mypy's stubtest).
@@ -75,9 +77,6 @@ wheel-test: venv
 py-test: develop test-deps
 	$(LLVM) $(VPY) -m pytest tests
 
-# rust-test first: its build of the library (default features) writes the same lib_lamina.so that maturin's build
-# makes, so run after `develop` it made the wheel step compile lamina again (7 minutes on 2 cores); run before it,
-# the wheel step reuses develop's build.
 test: rust-test lint py-test wheel-test
 
 # OPENBLAS_NUM_THREADS=1: NumPy's BLAS threads would otherwise spin on the cores both sides are measured on.
