@@ -67,7 +67,12 @@ def plot(name: str, g: dict, path: Path) -> None:
     xlabel, xs, ylabel, ys, _ = atlas.PLANES[name]
     ys = atlas.ATLAS_THETAS if ylabel == "θi" else ys
     panels = [*atlas.ATLAS_MODELS, "reference noise"]
-    fig, axes = plt.subplots(1, len(panels), figsize=(4.2 * len(panels), 4.4), constrained_layout=True)
+    cols = 4
+    rows = -(-len(panels) // cols)
+    fig, grid = plt.subplots(rows, cols, figsize=(4.2 * cols, 4.2 * rows + 0.3), constrained_layout=True, squeeze=False)
+    axes = grid.ravel()[: len(panels)]
+    for ax in grid.ravel()[len(panels) :]:
+        ax.set_visible(False)
     norm = LogNorm(0.005, 2.0)
     for ax, p in zip(axes, panels):
         e = g["noise"] if p == "reference noise" else g[p]["error"]
@@ -103,7 +108,7 @@ def plot(name: str, g: dict, path: Path) -> None:
         ax.set_yticks(range(len(ys)), [f"{y:g}" for y in ys], fontsize=7)
         ax.set_xlabel(xlabel, fontsize=7)
         ax.set_ylabel(ylabel + (" (°)" if ylabel == "θi" else ""), fontsize=8)
-    fig.colorbar(im, ax=axes, shrink=0.8, label="relative L1 lobe error against the reference")
+    fig.colorbar(im, ax=list(axes), shrink=0.8, label="relative L1 lobe error against the reference")
     fig.suptitle(f"Failure atlas: {name}. Flags: E energy > 1, N NaN/Inf, − negative, D discontinuity", fontsize=10)
     fig.savefig(path, dpi=110)
     plt.close(fig)

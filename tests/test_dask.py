@@ -58,8 +58,10 @@ def test_distributed_sweeps_equal_local_runs(client, rng):
 
 
 def test_atlas_plane_over_a_client_equals_a_local_run(client, tmp_path, monkeypatch):
-    """The failure atlas's cells as one task per stack: the same numbers as a local run in a fresh cache."""
-    remote = lamina.atlas.atlas_plane("theta-coat-ior", client=client, samples=200)
+    """The failure atlas's cells as one task per stack: the same numbers as a local run in a fresh cache (a published
+    model, and `tabulated`, whose tables the workers solve)."""
+    models = ("belcour", "tabulated")
+    remote = lamina.atlas.atlas_plane("theta-coat-ior", client=client, samples=200, models=models)
     monkeypatch.setenv("LAMINA_CACHE", str(tmp_path))
-    local = lamina.atlas.atlas_plane("theta-coat-ior", samples=200)
+    local = lamina.atlas.atlas_plane("theta-coat-ior", samples=200, models=models)
     assert remote == local

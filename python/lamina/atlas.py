@@ -57,30 +57,36 @@ def candidate_error(row: dict, label: str, model: str, options: dict, ground_tru
     return np.inf if e is None else float(np.mean(np.array(e)[low]))
 
 
-def measure(stack, candidates=CANDIDATES, samples: int = GROUND_TRUTH_SAMPLES, seed: int = 0) -> dict:
+def measure(
+    stack, candidates=CANDIDATES, samples: int = GROUND_TRUTH_SAMPLES, seed: int = 0, albedo: bool = True
+) -> dict:
     """One stack against the reference: its features, the reference's noise, and per candidate (label, model,
-    options) the lobe and albedo errors at SUITE_THETAS (None where the model cannot represent the stack)."""
+    options) the lobe and albedo errors at SUITE_THETAS (None where the model cannot represent the stack); without
+    `albedo`, the lobe errors alone (the albedos' walks and sampling take 9% of the time on the population)."""
     wi, wo = suite_directions()
     f_ref, se = cached_reference(stack, wi, wo, samples=samples, seed=seed, progress=False)
-    a_ref, a_se = reference_albedo(stack, samples=ALBEDO_SAMPLES, seed=seed)
-    lobe, albedo, flags = {}, {}, {}
+    if albedo:
+        a_ref, a_se = reference_albedo(stack, samples=ALBEDO_SAMPLES, seed=seed)
+    lobe, albedo_error, flags = {}, {}, {}
     for label, model, options in candidates:
         try:
             f = stack.eval(wi, wo, model, **options)
         except ValueError:
-            lobe[label] = albedo[label] = None
+            lobe[label] = albedo_error[label] = None
             continue
         lobe[label] = lobe_errors(f, f_ref).tolist()
-        albedo[label] = np.abs(model_albedo(stack, model, options)[0][:, 1] - a_ref[:, 1]).tolist()
+        if albedo:
+            albedo_error[label] = np.abs(model_albedo(stack, model, options)[0][:, 1] - a_ref[:, 1]).tolist()
         flags[label] = {"nonfinite": int((~np.isfinite(f)).sum()), "negative": int((f < 0).sum())}
-    return {
+    row = {
         "features": features(stack).tolist(),
         "noise": (se.sum(axis=(1, 2)) / np.abs(f_ref).sum(axis=(1, 2))).tolist(),
-        "albedo_se": a_se[:, 1].tolist(),
         "lobe_error": lobe,
-        "albedo_error": albedo,
         "flags": flags,
     }
+    if albedo:
+        row.update(albedo_se=a_se[:, 1].tolist(), albedo_error=albedo_error)
+    return row
 
 
 def measure_all(stacks, client=None, desc: str = "measuring", **kwargs) -> list:
@@ -131,8 +137,9 @@ def reference_cost(samples: int = 1000) -> float:
 
 # --- The failure atlas -------------------------------------------------------------------------------------------
 
-#: The layered models the atlas maps.
-ATLAS_MODELS = ("belcour", "steinberg", "weidlich_wilkie", "albedo_scaling")
+#: The layered models the atlas maps: the published ones, lamina's near-exact `tabulated` and belcour's improved variant
+#: (labels of CANDIDATES).
+ATLAS_MODELS = ("belcour", "steinberg", "weidlich_wilkie", "albedo_scaling", "tabulated", "belcour improved")
 #: Incident angles (degrees) of the θi axes.
 ATLAS_THETAS = (0.0, 15.0, 30.0, 45.0, 60.0, 70.0, 75.0, 80.0, 85.0, 89.0)
 #: Incident angles of the parameter × parameter planes, whose cells average the lobe error over them.
@@ -233,19 +240,20 @@ def _directions(thetas) -> tuple:
     return wi, suite_directions()[1]
 
 
-def atlas_cell(stack, thetas, samples: int = ATLAS_SAMPLES) -> dict:
-    """One stack of the atlas at incident angles `thetas`: per model, the lobe error at each angle, its albedo
-    (mean weight of its own sampling) and that albedo's standard error, and counts of non-finite and negative
-    values of f; the reference's noise and albedo at each angle. The reference is cached."""
+def atlas_cell(stack, thetas, samples: int = ATLAS_SAMPLES, models=ATLAS_MODELS) -> dict:
+    """One stack of the atlas at incident angles `thetas`: per model (labels of CANDIDATES), the lobe error at each
+    angle, its albedo (mean weight of its own sampling) and that albedo's standard error, and counts of non-finite
+    and negative values of f; the reference's noise and albedo at each angle. The reference is cached."""
     wi, wo = _directions(thetas)
     f_ref, se = cached_reference(stack, wi, wo, samples=samples, seed=0, progress=False)
     a_ref, _ = reference_albedo(stack, ALBEDO_SAMPLES, 0, thetas)
     out = {"noise": (se.sum(axis=(1, 2)) / np.abs(f_ref).sum(axis=(1, 2))).tolist(), "ref_albedo": a_ref[:, 1].tolist()}
-    for model in ATLAS_MODELS:
+    for label in models:
+        model, options = next((m, o) for name, m, o in CANDIDATES if name == label)
         with np.errstate(all="ignore"):
-            f = stack.eval(wi, wo, model)
-        albedo, albedo_se = model_albedo(stack, model, {}, thetas=thetas)
-        out[model] = {
+            f = stack.eval(wi, wo, model, **options)
+        albedo, albedo_se = model_albedo(stack, model, options, thetas=thetas)
+        out[label] = {
             "error": lobe_errors(np.nan_to_num(f, nan=0.0, posinf=0.0, neginf=0.0), f_ref).tolist(),
             "albedo": albedo[:, 1].tolist(),
             "albedo_se": albedo_se[:, 1].tolist(),
@@ -255,7 +263,7 @@ def atlas_cell(stack, thetas, samples: int = ATLAS_SAMPLES) -> dict:
     return out
 
 
-def atlas_plane(name: str, client=None, samples: int = ATLAS_SAMPLES) -> list:
+def atlas_plane(name: str, client=None, samples: int = ATLAS_SAMPLES, models=ATLAS_MODELS) -> list:
     """Every cell of plane `name` (PLANES), as atlas_cell dicts in x-major order: one per x for a θi plane, one per
     (x, y) otherwise; with a progress bar, or one task per stack on a dask.distributed `client`."""
     _, xs, ylabel, ys, make = PLANES[name]
@@ -264,11 +272,11 @@ def atlas_plane(name: str, client=None, samples: int = ATLAS_SAMPLES) -> list:
     else:
         jobs = [(make(x, y), PLANE_THETAS) for x in xs for y in ys]
     if client is not None:
-        return client.gather(client.map(lambda j: atlas_cell(*j, samples=samples), jobs, pure=False))
+        return client.gather(client.map(lambda j: atlas_cell(*j, samples=samples, models=models), jobs, pure=False))
     try:
         from tqdm.auto import tqdm
 
         jobs = tqdm(jobs, desc=f"atlas {name}", unit="stack")
     except ImportError:
         pass
-    return [atlas_cell(*j, samples=samples) for j in jobs]
+    return [atlas_cell(*j, samples=samples, models=models) for j in jobs]
