@@ -15,6 +15,7 @@ from __future__ import annotations
 import argparse
 import json
 import sys
+import textwrap
 from pathlib import Path
 
 import numpy as np
@@ -106,7 +107,7 @@ def plot(name: str, g: dict, path: Path) -> None:
         ax.set_title(p)
         ax.set_xticks(range(len(xs)), [f"{x:g}" for x in xs], fontsize=7, rotation=45)
         ax.set_yticks(range(len(ys)), [f"{y:g}" for y in ys], fontsize=7)
-        ax.set_xlabel(xlabel, fontsize=7)
+        ax.set_xlabel(textwrap.fill(xlabel, 60), fontsize=7)
         ax.set_ylabel(ylabel + (" (°)" if ylabel == "θi" else ""), fontsize=8)
     fig.colorbar(im, ax=list(axes), shrink=0.8, label="relative L1 lobe error against the reference")
     fig.suptitle(f"Failure atlas: {name}. Flags: E energy > 1, N NaN/Inf, − negative, D discontinuity", fontsize=10)
