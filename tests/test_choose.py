@@ -16,13 +16,11 @@ import lamina
 import numpy as np
 import pytest
 from lamina import Dielectric, Diffuse, Stack, atlas
-from lamina.choose import CANDIDATES, EVALUATIONS, REFERENCE_SAMPLES, _data
+from lamina.choose import EVALUATIONS, MODEL_OF, REFERENCE_SAMPLES, _data
 from lamina.materials import metal
 from lamina.reference import cached_reference, suite_directions
 
 HELD_OUT = 100
-#: Each candidate label's (model, options).
-MODEL_OF = {label: (model, options) for label, model, options in CANDIDATES}
 #: Stacks of scripts/population.py's out-of-distribution set measured here (its named six first).
 OOD_TESTED = 20
 

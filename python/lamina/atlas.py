@@ -17,7 +17,7 @@ import time
 import numpy as np
 
 from ._reference import lobe_errors
-from .choose import CANDIDATES, features
+from .choose import CANDIDATES, MODEL_OF, features
 from .layers import Dielectric
 from .reference import SUITE_THETAS, cached_reference, reference_albedo, suite_directions
 
@@ -249,7 +249,7 @@ def atlas_cell(stack, thetas, samples: int = ATLAS_SAMPLES, models=ATLAS_MODELS)
     a_ref, _ = reference_albedo(stack, ALBEDO_SAMPLES, 0, thetas)
     out = {"noise": (se.sum(axis=(1, 2)) / np.abs(f_ref).sum(axis=(1, 2))).tolist(), "ref_albedo": a_ref[:, 1].tolist()}
     for label in models:
-        model, options = next((m, o) for name, m, o in CANDIDATES if name == label)
+        model, options = MODEL_OF[label]
         with np.errstate(all="ignore"):
             f = stack.eval(wi, wo, model, **options)
         albedo, albedo_se = model_albedo(stack, model, options, thetas=thetas)

@@ -43,6 +43,8 @@ CANDIDATES = (
     ("weidlich_wilkie improved", "weidlich_wilkie", {"variant": "improved"}),
     ("tabulated", "tabulated", {}),
 )
+#: Each candidate label's (model, options).
+MODEL_OF = {label: (model, options) for label, model, options in CANDIDATES}
 #: The evaluations a choice's precomputation is spread over when the caller does not say (a 1024² image at about 10
 #: samples per pixel).
 EVALUATIONS = 10_000_000
